@@ -1,0 +1,1 @@
+//! Grid-hashed DBSCAN over one window's events.

@@ -1,0 +1,33 @@
+//! Named capacities and defaults.
+//!
+//! Capacities are compile-time constants (or const generics that default to them) so that
+//! the firmware's memory is fixed at link time. Defaults follow the E-Calib paper.
+
+/// Default number of events in a window (the paper's 4000).
+pub const DEFAULT_EVENTS_PER_WINDOW: usize = 4000;
+
+/// Default time between window ticks, in microseconds (the paper's 33 ms: 30 windows/s).
+pub const DEFAULT_STEP_US: u64 = 33_333;
+
+/// Default DBSCAN radius in normalised coordinates (x / width, y / height).
+pub const DEFAULT_EPS: f32 = 0.015;
+
+/// Default DBSCAN minimum number of points in an eps-neighbourhood (the point included)
+/// for a point to be a core point.
+pub const DEFAULT_MIN_PTS: u16 = 10;
+
+/// Default capacity of a window: the most events one window may hold.
+pub const MAX_EVENTS_PER_WINDOW: usize = 4000;
+
+/// Default capacity for clusters (and so centres) per window; clusters beyond it are counted
+/// as dropped.
+pub const MAX_CLUSTERS: usize = 96;
+
+/// Default number of buckets of the spatial hash used by clustering. A power of two.
+pub const HASH_BUCKETS: usize = 1024;
+
+/// Default fewest events a cluster needs to be fitted; smaller clusters are skipped.
+pub const DEFAULT_MIN_CLUSTER_EVENTS: u16 = 20;
+
+/// Default most Levenberg–Marquardt iterations of one eRWLS fit.
+pub const DEFAULT_MAX_ITERATIONS: u8 = 20;

@@ -1,0 +1,186 @@
+//! Events: the type every stage consumes, wrap-safe timestamps and input validation.
+//!
+//! Timestamps are integer microseconds in a `u64`, so recordings longer than the 32-bit
+//! microsecond wrap (71.6 minutes) keep a monotonic time axis. Sources that deliver 32-bit
+//! timestamps extend them with [`TimeUnwrapper`].
+
+/// One event: a pixel whose log intensity changed by more than the contrast threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Event {
+    /// Timestamp in microseconds.
+    pub t_us: u64,
+    /// Column, 0 = leftmost pixel.
+    pub x: u16,
+    /// Row, 0 = top pixel.
+    pub y: u16,
+    /// `true` for an increase of brightness (ON), `false` for a decrease (OFF).
+    pub polarity: bool,
+}
+
+/// Sensor size in pixels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct SensorSize {
+    /// Width in pixels (number of columns).
+    pub width: u16,
+    /// Height in pixels (number of rows).
+    pub height: u16,
+}
+
+impl SensorSize {
+    /// The iniVation DAVIS346: 346 x 260.
+    pub const DAVIS346: Self = Self::new(346, 260);
+    /// The iniVation DVXplorer: 640 x 480.
+    pub const DVXPLORER: Self = Self::new(640, 480);
+
+    /// A sensor of `width` x `height` pixels.
+    pub const fn new(width: u16, height: u16) -> Self {
+        Self { width, height }
+    }
+
+    /// Whether pixel (`x`, `y`) lies on the sensor.
+    pub const fn contains(&self, x: u16, y: u16) -> bool {
+        x < self.width && y < self.height
+    }
+}
+
+/// Extends 32-bit wrapping microsecond timestamps to 64 bits.
+///
+/// A timestamp that is smaller than the previous one by more than half the 32-bit range is
+/// taken as a wrap; a small step back is passed through unchanged (as a step back in time),
+/// so that [`InputFilter`] counts it rather than the unwrapper inventing a 71-minute jump.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TimeUnwrapper {
+    high: u64,
+    last: Option<u32>,
+}
+
+impl TimeUnwrapper {
+    /// A new unwrapper; the first timestamp is taken as it is.
+    pub const fn new() -> Self {
+        Self { high: 0, last: None }
+    }
+
+    /// The 64-bit time of the 32-bit timestamp `t`.
+    pub fn extend(&mut self, t: u32) -> u64 {
+        if let Some(last) = self.last {
+            if t < last && last - t > u32::MAX / 2 {
+                self.high += 1 << 32;
+            } else if t > last && t - last > u32::MAX / 2 && self.high > 0 {
+                // A late event from before the last wrap: report it in the previous epoch.
+                return (self.high - (1 << 32)) | u64::from(t);
+            }
+        }
+        self.last = Some(t);
+        self.high | u64::from(t)
+    }
+}
+
+/// Why [`InputFilter`] dropped an event.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Rejection {
+    /// The pixel lies outside the sensor.
+    OutOfSensor,
+    /// The timestamp is earlier than the previous accepted event's.
+    TimeBackwards,
+}
+
+/// Counts of what [`InputFilter`] accepted and dropped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct InputStats {
+    /// Events passed on.
+    pub accepted: u64,
+    /// Events dropped because their pixel lies outside the sensor.
+    pub out_of_sensor: u64,
+    /// Events dropped because time went backwards.
+    pub time_backwards: u64,
+}
+
+impl InputStats {
+    /// All events dropped, for any reason.
+    pub const fn dropped(&self) -> u64 {
+        self.out_of_sensor + self.time_backwards
+    }
+}
+
+/// Validates events before they reach the windower: pixel on the sensor, time not going
+/// backwards. Bad events are counted and dropped; nothing panics.
+#[derive(Debug, Clone)]
+pub struct InputFilter {
+    sensor: SensorSize,
+    last_t: Option<u64>,
+    stats: InputStats,
+}
+
+impl InputFilter {
+    /// A filter for a sensor of the given size.
+    pub const fn new(sensor: SensorSize) -> Self {
+        Self { sensor, last_t: None, stats: InputStats { accepted: 0, out_of_sensor: 0, time_backwards: 0 } }
+    }
+
+    /// Checks one event; `Ok` means pass it on.
+    pub fn check(&mut self, e: &Event) -> Result<(), Rejection> {
+        if !self.sensor.contains(e.x, e.y) {
+            self.stats.out_of_sensor += 1;
+            return Err(Rejection::OutOfSensor);
+        }
+        if matches!(self.last_t, Some(last) if e.t_us < last) {
+            self.stats.time_backwards += 1;
+            return Err(Rejection::TimeBackwards);
+        }
+        self.last_t = Some(e.t_us);
+        self.stats.accepted += 1;
+        Ok(())
+    }
+
+    /// What has been accepted and dropped so far.
+    pub const fn stats(&self) -> InputStats {
+        self.stats
+    }
+
+    /// The sensor this filter checks against.
+    pub const fn sensor(&self) -> SensorSize {
+        self.sensor
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    #[test]
+    fn unwrapper_extends_across_wraps() {
+        let mut u = TimeUnwrapper::new();
+        assert_eq!(u.extend(10), 10);
+        assert_eq!(u.extend(u32::MAX - 5), u64::from(u32::MAX - 5));
+        assert_eq!(u.extend(3), (1u64 << 32) + 3);
+        assert_eq!(u.extend(1 << 31), (1u64 << 32) + (1 << 31));
+        assert_eq!(u.extend(u32::MAX), (1u64 << 32) + u64::from(u32::MAX));
+        assert_eq!(u.extend(7), (2u64 << 32) + 7);
+        // a late event from just before the last wrap stays in the previous epoch
+        assert_eq!(u.extend(u32::MAX - 1), (1u64 << 32) + u64::from(u32::MAX - 1));
+    }
+
+    #[test]
+    fn unwrapper_passes_small_steps_back() {
+        let mut u = TimeUnwrapper::new();
+        assert_eq!(u.extend(1000), 1000);
+        assert_eq!(u.extend(990), 990);
+    }
+
+    #[test]
+    fn filter_counts_and_drops() {
+        let mut f = InputFilter::new(SensorSize::new(10, 5));
+        let ev = |t, x, y| Event { t_us: t, x, y, polarity: true };
+        assert!(f.check(&ev(5, 0, 0)).is_ok());
+        assert_eq!(f.check(&ev(6, 10, 0)), Err(Rejection::OutOfSensor));
+        assert_eq!(f.check(&ev(6, 0, 5)), Err(Rejection::OutOfSensor));
+        assert_eq!(f.check(&ev(4, 9, 4)), Err(Rejection::TimeBackwards));
+        assert!(f.check(&ev(5, 9, 4)).is_ok(), "equal timestamps are fine");
+        let s = f.stats();
+        assert_eq!((s.accepted, s.out_of_sensor, s.time_backwards, s.dropped()), (2, 2, 1, 3));
+    }
+}

@@ -1,0 +1,42 @@
+//! # evcal-core
+//!
+//! The fixed-memory detection core of evcal. It turns a stream of events from an event
+//! camera that watches an asymmetric circle grid into per-window lists of sub-pixel circle
+//! centres, following the E-Calib method. The same code runs on a Cortex-M4F beside the
+//! sensor, inside the host tool, and in the simulation tests, and gives bit-identical
+//! centres on all of them.
+//!
+//! Data flows one way through the modules:
+//!
+//! ```text
+//! event ──▶ window ──▶ cluster ──▶ fit ──▶ detect (per-window result)
+//! ```
+//!
+//! * [`event`]: the event type (integer microseconds, wrap-safe), input validation.
+//! * [`window`]: the windower: the first N events at or after each tick of event time.
+//! * [`cluster`]: DBSCAN (and the spatio-temporal variant) over a fixed-size spatial hash.
+//! * [`fit`]: eRWLS slanted-cylinder fit of each cluster, giving a circle centre.
+//! * [`detect`]: runs clustering and fitting over one window, in caller-provided memory.
+//!
+//! ## Guarantees
+//!
+//! * `no_std`, no allocator: every buffer is inline with a const-generic capacity or is
+//!   provided by the caller. Every capacity limit is a named constant in [`config`] or a
+//!   const generic; overflow is counted in statistics, never fatal.
+//! * No panics on any input: malformed events are counted and dropped.
+//! * Floating point is `f32` through `libm`, so results are bit-identical on the host and
+//!   on the Cortex-M4F's single-precision FPU.
+//!
+//! ## Features
+//!
+//! * `defmt`: implement `defmt::Format` on the public types, for firmware logging.
+#![cfg_attr(not(test), no_std)]
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod cluster;
+pub mod config;
+pub mod event;
+pub mod fit;
+pub mod window;
+pub mod wire;

@@ -1,0 +1,294 @@
+//! The windower: cuts the event stream into windows of the first N events at or after each
+//! tick of event time.
+//!
+//! Ticks fall every `step_us` of event time from the first event on. A window starts at the
+//! first event at or after a tick and holds the next `events` events. The window's
+//! reference time `t_ref` is its first event's time, and each event is stored relative to
+//! it, in 8 bytes.
+//!
+//! With one buffer of fixed size, a window is never shared by two ticks: ticks that fall
+//! while a window is still filling (slow scenes, where N events take longer than a step)
+//! are skipped and counted in [`WindowInfo::ticks_skipped`]. The offline reference code
+//! would emit an overlapping window there instead.
+
+use crate::event::Event;
+
+/// An event inside a window: pixel, and time since the window's reference time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowEvent {
+    /// Column.
+    pub x: u16,
+    /// Row.
+    pub y: u16,
+    /// Microseconds since the window's `t_ref` (saturates at `u32::MAX`, 71 minutes).
+    pub dt_us: u32,
+}
+
+/// How windows are cut.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowConfig {
+    /// Events per window; at least 1, at most the windower's capacity (clamped).
+    pub events: usize,
+    /// Microseconds between ticks; 0 means back-to-back windows.
+    pub step_us: u64,
+}
+
+impl Default for WindowConfig {
+    fn default() -> Self {
+        Self { events: crate::config::DEFAULT_EVENTS_PER_WINDOW, step_us: crate::config::DEFAULT_STEP_US }
+    }
+}
+
+/// What is known of a completed window.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowInfo {
+    /// Sequence number of the window, from 0.
+    pub seq: u32,
+    /// Time of the window's first event, in microseconds.
+    pub t_ref_us: u64,
+    /// Time of the window's last event, in microseconds.
+    pub t_last_us: u64,
+    /// Ticks that fell inside the previous window while it filled and so started no window.
+    pub ticks_skipped: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum State {
+    /// No event seen yet.
+    Start,
+    /// Waiting for the first event at or after tick `k`.
+    Waiting { k: u64, skipped: u32 },
+    /// Filling the window of tick `k`.
+    Filling { k: u64, skipped: u32 },
+    /// The window is complete and handed out; the next push starts a new search.
+    Full { k: u64 },
+}
+
+/// Cuts an event stream into windows of at most `N` events, in inline storage.
+///
+/// ```
+/// use evcal_core::{event::Event, window::{Windower, WindowConfig}};
+/// let mut w: Windower<4> = Windower::new(WindowConfig { events: 3, step_us: 100 });
+/// let mut done = None;
+/// for t in [0u64, 10, 20, 30, 150, 160, 170] {
+///     if let Some(info) = w.push(Event { t_us: t, x: 1, y: 2, polarity: true }) {
+///         done = Some((info, w.events().len()));
+///     }
+/// }
+/// let (info, len) = done.unwrap();
+/// assert_eq!((info.seq, info.t_ref_us, len), (1, 150, 3));
+/// ```
+#[derive(Debug, Clone)]
+pub struct Windower<const N: usize> {
+    cfg: WindowConfig,
+    buf: [WindowEvent; N],
+    len: usize,
+    t0: u64,
+    t_ref: u64,
+    t_last: u64,
+    seq: u32,
+    state: State,
+}
+
+impl<const N: usize> Windower<N> {
+    /// A windower that cuts windows as `cfg` says (events clamped to 1..=N).
+    pub const fn new(cfg: WindowConfig) -> Self {
+        let events = if cfg.events == 0 {
+            1
+        } else if cfg.events > N {
+            N
+        } else {
+            cfg.events
+        };
+        Self {
+            cfg: WindowConfig { events, step_us: cfg.step_us },
+            buf: [WindowEvent { x: 0, y: 0, dt_us: 0 }; N],
+            len: 0,
+            t0: 0,
+            t_ref: 0,
+            t_last: 0,
+            seq: 0,
+            state: State::Start,
+        }
+    }
+
+    /// The configuration in force (after clamping).
+    pub const fn config(&self) -> WindowConfig {
+        self.cfg
+    }
+
+    /// Index of the last tick at or before `t`.
+    fn tick_at(&self, t: u64) -> u64 {
+        if self.cfg.step_us == 0 {
+            0
+        } else {
+            (t - self.t0) / self.cfg.step_us
+        }
+    }
+
+    fn tick_time(&self, k: u64) -> u64 {
+        self.t0.saturating_add(k.saturating_mul(self.cfg.step_us))
+    }
+
+    /// Feeds one event (time must not go backwards: filter with
+    /// [`InputFilter`](crate::event::InputFilter) first; an event earlier than the last is
+    /// ignored). Returns the window's info when this event completes a window; the window's
+    /// events are then in [`events`](Self::events) / [`events_mut`](Self::events_mut) until
+    /// the next push.
+    pub fn push(&mut self, e: Event) -> Option<WindowInfo> {
+        if self.state != State::Start && e.t_us < self.t_last {
+            return None;
+        }
+        match self.state {
+            State::Start => {
+                self.t0 = e.t_us;
+                self.begin(e, 0, 0)
+            }
+            State::Waiting { k, skipped } => {
+                if e.t_us < self.tick_time(k) {
+                    self.t_last = e.t_us;
+                    return None;
+                }
+                // After a gap, the window belongs to the last tick the event is at or after.
+                let k = self.tick_at(e.t_us).max(k);
+                self.begin(e, k, skipped)
+            }
+            State::Filling { k, skipped } => {
+                self.append(e);
+                if self.len >= self.cfg.events {
+                    self.state = State::Full { k };
+                    return Some(WindowInfo {
+                        seq: self.seq,
+                        t_ref_us: self.t_ref,
+                        t_last_us: self.t_last,
+                        ticks_skipped: skipped,
+                    });
+                }
+                let _ = k;
+                None
+            }
+            State::Full { k } => {
+                self.seq = self.seq.wrapping_add(1);
+                // The next tick strictly after the full window's last event; ticks before it
+                // fell inside the window.
+                let next = if self.cfg.step_us == 0 { k } else { self.tick_at(self.t_last) + 1 };
+                let skipped = next.saturating_sub(k + 1).min(u64::from(u32::MAX)) as u32;
+                self.len = 0;
+                self.state = State::Waiting { k: next, skipped };
+                self.push(e)
+            }
+        }
+    }
+
+    fn begin(&mut self, e: Event, k: u64, skipped: u32) -> Option<WindowInfo> {
+        self.t_ref = e.t_us;
+        self.len = 0;
+        self.state = State::Filling { k, skipped };
+        // Appending through the Filling arm also handles a window of one event.
+        self.push(e)
+    }
+
+    fn append(&mut self, e: Event) {
+        let dt = e.t_us - self.t_ref;
+        if self.len < N {
+            self.buf[self.len] = WindowEvent { x: e.x, y: e.y, dt_us: dt.min(u64::from(u32::MAX)) as u32 };
+            self.len += 1;
+        }
+        self.t_last = e.t_us;
+    }
+
+    /// Events of the window just completed (empty while a window fills).
+    pub fn events(&self) -> &[WindowEvent] {
+        match self.state {
+            State::Full { .. } => &self.buf[..self.len],
+            _ => &[],
+        }
+    }
+
+    /// The completed window's events, for in-place processing (clustering reorders them).
+    pub fn events_mut(&mut self) -> &mut [WindowEvent] {
+        match self.state {
+            State::Full { .. } => &mut self.buf[..self.len],
+            _ => &mut [],
+        }
+    }
+
+    /// Events held by the window that is still filling (dropped at the end of a stream).
+    pub fn pending(&self) -> usize {
+        match self.state {
+            State::Filling { .. } => self.len,
+            _ => 0,
+        }
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    fn ev(t: u64) -> Event {
+        Event { t_us: t, x: (t % 300) as u16, y: 7, polarity: false }
+    }
+
+    fn run<const N: usize>(cfg: WindowConfig, ts: &[u64]) -> std::vec::Vec<(WindowInfo, std::vec::Vec<WindowEvent>)> {
+        let mut w: Windower<N> = Windower::new(cfg);
+        let mut out = std::vec::Vec::new();
+        for &t in ts {
+            if let Some(info) = w.push(ev(t)) {
+                out.push((info, w.events().to_vec()));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn first_n_events_at_or_after_each_tick() {
+        // ticks at 0, 100, 200, 300
+        let ts = [0, 10, 20, 30, 40, 99, 100, 101, 102, 250, 300, 301, 302];
+        let w = run::<8>(WindowConfig { events: 3, step_us: 100 }, &ts);
+        let refs: std::vec::Vec<_> = w.iter().map(|(i, _)| (i.seq, i.t_ref_us, i.t_last_us)).collect();
+        assert_eq!(refs, [(0, 0, 20), (1, 100, 102), (2, 250, 301)]);
+        // the window at 250 belongs to tick 200 (first event at or after it); 300 then fell
+        // inside it and was skipped
+        assert_eq!(w[2].0.ticks_skipped, 0);
+        let dts: std::vec::Vec<u32> = w[1].1.iter().map(|e| e.dt_us).collect();
+        assert_eq!(dts, [0, 1, 2]);
+    }
+
+    #[test]
+    fn ticks_inside_a_filling_window_are_skipped_and_counted() {
+        // 3 events per window, but they span 0..=250 with ticks every 100
+        let ts = [0, 120, 250, 260, 290, 301, 302, 303];
+        let w = run::<4>(WindowConfig { events: 3, step_us: 100 }, &ts);
+        assert_eq!(w.len(), 2);
+        assert_eq!(w[1].0.t_ref_us, 301);
+        assert_eq!(w[1].0.ticks_skipped, 2, "ticks 100 and 200 fell inside window 0");
+    }
+
+    #[test]
+    fn back_to_back_when_step_is_zero() {
+        let ts: std::vec::Vec<u64> = (0..10).collect();
+        let w = run::<4>(WindowConfig { events: 2, step_us: 0 }, &ts);
+        assert_eq!(w.len(), 5);
+        assert_eq!(w[4].0.t_ref_us, 8);
+    }
+
+    #[test]
+    fn events_clamped_to_capacity_and_backwards_time_ignored() {
+        let w = run::<2>(WindowConfig { events: 10, step_us: 0 }, &[5, 6, 4, 7, 8]);
+        assert_eq!(w.len(), 2);
+        assert_eq!(w[0].1.len(), 2);
+    }
+
+    #[test]
+    fn huge_gaps_and_times_do_not_overflow() {
+        let ts = [0, u64::MAX / 2, u64::MAX / 2 + 1, u64::MAX - 1, u64::MAX];
+        let w = run::<2>(WindowConfig { events: 2, step_us: 1 }, &ts);
+        assert_eq!(w.len(), 2);
+        let w = run::<2>(WindowConfig { events: 2, step_us: u64::MAX }, &ts);
+        assert_eq!(w.len(), 1);
+    }
+}

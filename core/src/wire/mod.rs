@@ -1,0 +1,1 @@
+//! The wire protocol between the device and the host.

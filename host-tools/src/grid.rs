@@ -1,0 +1,1 @@
+//! Finds the asymmetric circle grid among one window's centres.

@@ -1,0 +1,6 @@
+//! evcal host side: recordings readers, the event-camera simulator and the detection run
+//! used by the `evcal` CLI.
+
+pub mod calib;
+pub mod grid;
+pub mod sim;

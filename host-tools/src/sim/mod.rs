@@ -1,0 +1,1 @@
+//! Simulated event camera watching an asymmetric circle grid, with ground truth.
