@@ -122,11 +122,7 @@ impl<const N: usize> Windower<N> {
 
     /// Index of the last tick at or before `t`.
     fn tick_at(&self, t: u64) -> u64 {
-        if self.cfg.step_us == 0 {
-            0
-        } else {
-            (t - self.t0) / self.cfg.step_us
-        }
+        (t - self.t0).checked_div(self.cfg.step_us).unwrap_or(0)
     }
 
     fn tick_time(&self, k: u64) -> u64 {
