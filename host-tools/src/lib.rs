@@ -2,5 +2,7 @@
 //! used by the `evcal` CLI.
 
 pub mod calib;
+pub mod detections;
 pub mod grid;
+pub mod recording;
 pub mod sim;

@@ -1,0 +1,198 @@
+//! One detector: input filter, windower, clusterer and circle fit, over caller-owned memory.
+//!
+//! [`Detector::push`] takes events one at a time and, whenever a window completes, clusters
+//! it and fits every cluster, returning the window's [`Detection`]. Everything lives inline
+//! in the `Detector` value, so the firmware can place it in a `static`.
+
+use crate::{
+    cluster::{ClusterConfig, ClusterStats, Clusterer},
+    config::{HASH_BUCKETS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    event::{Event, InputFilter, InputStats, SensorSize},
+    fit::{fit, Centre, FitConfig},
+    window::{WindowConfig, WindowEvent, WindowInfo, Windower},
+};
+
+/// Everything the detector needs to know.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DetectConfig {
+    /// Sensor size: events outside it are dropped, coordinates normalised by it.
+    pub sensor: SensorSize,
+    /// How windows are cut.
+    pub window: WindowConfig,
+    /// DBSCAN settings.
+    pub cluster: ClusterConfig,
+    /// Circle fit settings.
+    pub fit: FitConfig,
+}
+
+impl DetectConfig {
+    /// The paper's defaults for a sensor of the given size.
+    pub fn new(sensor: SensorSize) -> Self {
+        Self { sensor, window: WindowConfig::default(), cluster: ClusterConfig::default(), fit: FitConfig::default() }
+    }
+}
+
+/// Counts of one window's processing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WindowStats {
+    /// Events in the window.
+    pub events: u16,
+    /// Events DBSCAN left as noise.
+    pub noise: u16,
+    /// Clusters found and kept.
+    pub clusters: u16,
+    /// Clusters beyond the capacity, dropped.
+    pub dropped_clusters: u16,
+    /// Clusters the fit rejected (too small, degenerate).
+    pub rejected_fits: u16,
+    /// Ticks that fell inside the previous window and started none.
+    pub ticks_skipped: u32,
+    /// Distance checks of the clustering: its work.
+    pub distance_checks: u32,
+    /// Time spent clustering, in the caller's clock ticks (0 without a clock).
+    pub cluster_ticks: u32,
+    /// Time spent fitting, in the caller's clock ticks (0 without a clock).
+    pub fit_ticks: u32,
+}
+
+/// The result of one window: when, what was counted, and the circle centres found.
+#[derive(Debug, Clone, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Detection<const C: usize> {
+    /// The window: sequence number and reference time.
+    pub info: WindowInfo,
+    /// Counts.
+    pub stats: WindowStats,
+    /// Fitted circle centres, in cluster order.
+    pub centres: heapless::Vec<Centre, C>,
+}
+
+/// A source of time for per-stage measurements (SysTick on the device). The unit is the
+/// caller's; differences are taken with wrapping arithmetic.
+pub trait Clock {
+    /// The current time.
+    fn now(&mut self) -> u32;
+}
+
+/// No clock: stage times read 0.
+impl Clock for () {
+    fn now(&mut self) -> u32 {
+        0
+    }
+}
+
+/// The detection pipeline for windows of at most `N` events, at most `C` clusters per
+/// window, and a spatial hash of `B` buckets.
+#[derive(Debug, Clone)]
+pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX_CLUSTERS, const B: usize = HASH_BUCKETS>
+{
+    cfg: DetectConfig,
+    filter: InputFilter,
+    windower: Windower<N>,
+    clusterer: Clusterer<N, C, B>,
+    out: Detection<C>,
+}
+
+impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
+    /// A detector with the given configuration (events per window clamped to `1..=N`).
+    pub const fn new(cfg: DetectConfig) -> Self {
+        Self {
+            cfg,
+            filter: InputFilter::new(cfg.sensor),
+            windower: Windower::new(cfg.window),
+            clusterer: Clusterer::new(),
+            out: Detection {
+                info: WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
+                stats: WindowStats {
+                    events: 0,
+                    noise: 0,
+                    clusters: 0,
+                    dropped_clusters: 0,
+                    rejected_fits: 0,
+                    ticks_skipped: 0,
+                    distance_checks: 0,
+                    cluster_ticks: 0,
+                    fit_ticks: 0,
+                },
+                centres: heapless::Vec::new(),
+            },
+        }
+    }
+
+    /// The configuration in force (events per window after clamping).
+    pub const fn config(&self) -> DetectConfig {
+        let mut cfg = self.cfg;
+        cfg.window = self.windower.config();
+        cfg
+    }
+
+    /// Feeds one event; returns the window's detection when this event completes a window.
+    pub fn push(&mut self, e: Event) -> Option<&Detection<C>> {
+        self.push_timed(e, &mut ())
+    }
+
+    /// As [`push`](Self::push), measuring each stage with `clock`.
+    pub fn push_timed(&mut self, e: Event, clock: &mut impl Clock) -> Option<&Detection<C>> {
+        if self.filter.check(&e).is_err() {
+            return None;
+        }
+        let info = self.windower.push(e)?;
+        let cfg = self.cfg;
+        let events = self.windower.events_mut();
+        self.out = Detection { info, stats: WindowStats::default(), centres: heapless::Vec::new() };
+        process(&mut self.clusterer, events, &cfg, &mut self.out, clock);
+        Some(&self.out)
+    }
+
+    /// What the input filter accepted and dropped.
+    pub const fn input_stats(&self) -> InputStats {
+        self.filter.stats()
+    }
+
+    /// Events held by a window that has not completed yet.
+    pub fn pending(&self) -> usize {
+        self.windower.pending()
+    }
+}
+
+/// Clusters one window's events and fits every cluster, writing into `out` (its `info` is
+/// left as it is). `events` is reordered. The building block of [`Detector`], public for
+/// benchmarks and for callers that cut windows themselves.
+pub fn process<const N: usize, const C: usize, const B: usize>(
+    clusterer: &mut Clusterer<N, C, B>,
+    events: &mut [WindowEvent],
+    cfg: &DetectConfig,
+    out: &mut Detection<C>,
+    clock: &mut impl Clock,
+) {
+    let t0 = clock.now();
+    let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
+    let ranges = clusterer.group(events);
+    let t1 = clock.now();
+    let mut rejected = 0u16;
+    out.centres.clear();
+    for r in ranges {
+        let slice = events.get(usize::from(r.start)..usize::from(r.end)).unwrap_or(&[]);
+        match fit(slice, &cfg.fit) {
+            // Capacity is C, the clusterer's too: a push cannot fail.
+            Some(c) => {
+                let _ = out.centres.push(c);
+            }
+            None => rejected += 1,
+        }
+    }
+    let t2 = clock.now();
+    out.stats = WindowStats {
+        events: cs.events,
+        noise: cs.noise,
+        clusters: cs.clusters,
+        dropped_clusters: cs.dropped_clusters,
+        rejected_fits: rejected,
+        ticks_skipped: out.info.ticks_skipped,
+        distance_checks: cs.distance_checks,
+        cluster_ticks: t1.wrapping_sub(t0),
+        fit_ticks: t2.wrapping_sub(t1),
+    };
+}

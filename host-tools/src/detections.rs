@@ -1,0 +1,125 @@
+//! Running the core over a recording on the host, and the detections' JSON-lines schema.
+//!
+//! One JSON object per window per line:
+//! `{"seq", "t_ref_us", "events", "noise", "centers": [{"u", "v", "r", "spread", "n", "converged"}]}`.
+//! Other programs read these names; they do not change.
+
+use crate::recording::ReadError;
+use evcal_core::{
+    config::{HASH_BUCKETS, MAX_CLUSTERS},
+    detect::{DetectConfig, Detection, Detector},
+    event::{Event, InputStats},
+};
+use serde::{Deserialize, Serialize};
+
+/// Most events per window the host's detector holds (the firmware's is
+/// [`MAX_EVENTS_PER_WINDOW`](evcal_core::config::MAX_EVENTS_PER_WINDOW)). Results do not
+/// depend on it: only the number of clusters and the hash size shape them, and those match
+/// the firmware's.
+pub const HOST_MAX_EVENTS: usize = 32_000;
+
+/// The detector the host runs: the firmware's clusters and hash, a larger window.
+pub type HostDetector = Detector<HOST_MAX_EVENTS, MAX_CLUSTERS, HASH_BUCKETS>;
+
+/// One circle centre as written to and read from detections files.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct CenterRecord {
+    /// Centre column at the window's t_ref, px.
+    pub u: f32,
+    /// Centre row at the window's t_ref, px.
+    pub v: f32,
+    /// Radius, px.
+    pub r: f32,
+    /// Weighted RMS distance of the cluster's events from the circle, px.
+    pub spread: f32,
+    /// Events in the cluster.
+    pub n: u16,
+    /// Whether the fit converged.
+    pub converged: bool,
+}
+
+/// One window's detections, one line of a detections file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WindowRecord {
+    /// Window sequence number.
+    pub seq: u32,
+    /// Reference time of the window (its first event), µs.
+    pub t_ref_us: u64,
+    /// Events in the window.
+    pub events: u16,
+    /// Events left as noise by the clustering.
+    pub noise: u16,
+    /// The circle centres found.
+    pub centers: Vec<CenterRecord>,
+}
+
+impl WindowRecord {
+    /// The record of a core detection.
+    pub fn from_detection<const C: usize>(d: &Detection<C>) -> Self {
+        Self {
+            seq: d.info.seq,
+            t_ref_us: d.info.t_ref_us,
+            events: d.stats.events,
+            noise: d.stats.noise,
+            centers: d
+                .centres
+                .iter()
+                .map(|c| CenterRecord { u: c.u, v: c.v, r: c.r, spread: c.spread, n: c.n, converged: c.converged })
+                .collect(),
+        }
+    }
+
+    /// The record as one JSON line (no newline).
+    pub fn to_json_line(&self) -> String {
+        // Serialising plain numbers and strings cannot fail.
+        serde_json::to_string(self).unwrap_or_default()
+    }
+}
+
+/// Totals of one run over a recording.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct RunSummary {
+    /// Events read from the recording.
+    pub events_read: u64,
+    /// Windows completed.
+    pub windows: u64,
+    /// Centres found, over all windows.
+    pub centres: u64,
+    /// Events of the last, incomplete window (not processed).
+    pub events_in_last_partial_window: u64,
+    /// Clusters dropped for lack of capacity, over all windows.
+    pub dropped_clusters: u64,
+    /// Ticks skipped because a window was still filling.
+    pub ticks_skipped: u64,
+    /// Out-of-sensor events dropped.
+    pub out_of_sensor: u64,
+    /// Events dropped because time went backwards.
+    pub time_backwards: u64,
+}
+
+/// Runs the core over `events`, calling `on_window` with each completed window. Stops at the
+/// first read error and returns it (the windows before it have been delivered).
+pub fn run(
+    events: impl Iterator<Item = Result<Event, ReadError>>,
+    cfg: DetectConfig,
+    mut on_window: impl FnMut(&Detection<MAX_CLUSTERS>),
+) -> Result<RunSummary, ReadError> {
+    let mut det: Box<HostDetector> = Box::new(HostDetector::new(cfg));
+    let mut s = RunSummary::default();
+    for e in events {
+        let e = e?;
+        s.events_read += 1;
+        if let Some(d) = det.push(e) {
+            s.windows += 1;
+            s.centres += d.centres.len() as u64;
+            s.dropped_clusters += u64::from(d.stats.dropped_clusters);
+            s.ticks_skipped += u64::from(d.stats.ticks_skipped);
+            on_window(d);
+        }
+    }
+    let input: InputStats = det.input_stats();
+    s.out_of_sensor = input.out_of_sensor;
+    s.time_backwards = input.time_backwards;
+    s.events_in_last_partial_window = det.pending() as u64;
+    Ok(s)
+}

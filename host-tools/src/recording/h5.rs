@@ -1,0 +1,170 @@
+//! E-Calib's HDF5 layout: a dataset `events_data`, N x 4 rows of `[x, y, p, t_seconds]`.
+
+use super::{EventSource, Position, ReadError};
+use evcal_core::event::Event;
+use std::path::{Path, PathBuf};
+
+/// Rows read per HDF5 request: large enough to amortise the library's per-call cost, small
+/// enough to keep memory constant for multi-gigabyte files.
+const CHUNK_ROWS: usize = 1 << 16;
+
+/// Streaming reader of E-Calib HDF5 recordings.
+pub struct H5Reader {
+    path: PathBuf,
+    ds: hdf5::Dataset,
+    rows: usize,
+    next_row: usize,
+    chunk: Vec<[f64; 4]>,
+    at: usize,
+    failed: bool,
+}
+
+impl H5Reader {
+    /// Opens `path` and checks that `events_data` is an N x 4 numeric table.
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let err = |m: String| ReadError::new(path, Position::File, m);
+        let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
+        let ds = file.dataset("events_data").map_err(|_| {
+            let names = file.member_names().unwrap_or_default().join(", ");
+            err(format!("no dataset 'events_data' (E-Calib layout: N x 4 [x, y, p, t]); the file has: [{names}]"))
+        })?;
+        let shape = ds.shape();
+        if shape.len() != 2 || shape[1] != 4 {
+            return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));
+        }
+        Ok(Self { path: path.to_path_buf(), ds, rows: shape[0], next_row: 0, chunk: Vec::new(), at: 0, failed: false })
+    }
+
+    /// Number of events in the file.
+    pub fn len(&self) -> u64 {
+        self.rows as u64
+    }
+
+    /// Whether the file holds no events.
+    pub fn is_empty(&self) -> bool {
+        self.rows == 0
+    }
+
+    fn fill(&mut self) -> Result<(), ReadError> {
+        let end = (self.next_row + CHUNK_ROWS).min(self.rows);
+        let a = self.ds.read_slice_2d::<f64, _>((self.next_row..end, ..)).map_err(|e| {
+            ReadError::new(&self.path, Position::Row(self.next_row as u64), format!("cannot read events_data: {e}"))
+        })?;
+        self.chunk.clear();
+        self.chunk.extend(a.rows().into_iter().map(|r| [r[0], r[1], r[2], r[3]]));
+        self.at = 0;
+        self.next_row = end;
+        Ok(())
+    }
+}
+
+impl EventSource for H5Reader {
+    fn next_event(&mut self) -> Option<Result<Event, ReadError>> {
+        if self.failed {
+            return None;
+        }
+        if self.at >= self.chunk.len() {
+            if self.next_row >= self.rows {
+                return None;
+            }
+            if let Err(e) = self.fill() {
+                self.failed = true;
+                return Some(Err(e));
+            }
+        }
+        let row = (self.next_row - self.chunk.len() + self.at) as u64;
+        let [x, y, p, t] = self.chunk[self.at];
+        self.at += 1;
+        let r = row_to_event(x, y, p, t).map_err(|m| ReadError::new(&self.path, Position::Row(row), m));
+        self.failed = r.is_err();
+        Some(r)
+    }
+
+    fn progress_bytes(&self) -> u64 {
+        // 32 bytes a row as f64: a fair scale against the file size.
+        (self.next_row - self.chunk.len() + self.at) as u64 * 32
+    }
+}
+
+fn row_to_event(x: f64, y: f64, p: f64, t: f64) -> Result<Event, String> {
+    let coord = |v: f64, name: &str| -> Result<u16, String> {
+        if v.is_finite() && v >= 0.0 && v <= 65535.0 && v.fract() == 0.0 {
+            Ok(v as u16)
+        } else {
+            Err(format!("bad {name} {v} (an integer pixel coordinate)"))
+        }
+    };
+    let x = coord(x, "x")?;
+    let y = coord(y, "y")?;
+    let polarity = if p == 1.0 {
+        true
+    } else if p == 0.0 || p == -1.0 {
+        false
+    } else {
+        return Err(format!("bad polarity {p} (1/0 or 1/-1)"));
+    };
+    if !(t.is_finite() && (0.0..1.8e13).contains(&t)) {
+        return Err(format!("bad timestamp {t} s"));
+    }
+    Ok(Event { t_us: (t * 1e6).round() as u64, x, y, polarity })
+}
+
+/// Writes events in E-Calib's layout (`events_data`, N x 4 f64 `[x, y, p, t_seconds]`).
+pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
+    let file = hdf5::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut data = Vec::with_capacity(events.len() * 4);
+    for e in events {
+        data.extend([f64::from(e.x), f64::from(e.y), f64::from(u8::from(e.polarity)), e.t_us as f64 * 1e-6]);
+    }
+    let arr = ndarray::Array2::from_shape_vec((events.len(), 4), data).map_err(|e| e.to_string())?;
+    file.new_dataset_builder()
+        .with_data(&arr)
+        .create("events_data")
+        .map_err(|e| format!("{}: cannot write events_data: {e}", path.display()))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::recording::{Format, Recording};
+
+    #[test]
+    fn round_trip_and_errors() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("rec.h5");
+        let events: Vec<Event> = (0..70_000u64)
+            .map(|i| Event { t_us: i * 13 + 1_000_000, x: (i % 640) as u16, y: (i % 480) as u16, polarity: i % 2 == 0 })
+            .collect();
+        write_ecalib_h5(&p, &events).unwrap();
+        assert_eq!(Format::detect(&p).unwrap(), Format::EcalibH5);
+        let rec = Recording::open(&p).unwrap();
+        assert_eq!(rec.len, Some(70_000));
+        let back: Vec<Event> = rec.map(Result::unwrap).collect();
+        assert_eq!(back, events);
+
+        // a foreign HDF5 file: named, with what it holds
+        let q = dir.path().join("other.h5");
+        let f = hdf5::File::create(&q).unwrap();
+        f.new_dataset_builder().with_data(&ndarray::arr2(&[[1.0f64, 2.0], [3.0, 4.0]])).create("x").unwrap();
+        drop(f);
+        let msg = Recording::open(&q).err().unwrap().to_string();
+        assert!(msg.contains("other.h5") && msg.contains("events_data") && msg.contains("[x]"), "{msg}");
+
+        // a bad row: named by its index
+        let r = dir.path().join("badrow.h5");
+        let f = hdf5::File::create(&r).unwrap();
+        let a = ndarray::arr2(&[[1.0f64, 2.0, 1.0, 0.1], [1.5, 2.0, 1.0, 0.2]]);
+        f.new_dataset_builder().with_data(&a).create("events_data").unwrap();
+        drop(f);
+        let errs: Vec<_> = Recording::open(&r).unwrap().filter_map(Result::err).collect();
+        assert_eq!(errs.len(), 1);
+        assert_eq!(errs[0].at, Position::Row(1));
+
+        // not HDF5 at all, but named .h5
+        let s = dir.path().join("fake.h5");
+        std::fs::write(&s, "hello").unwrap();
+        let msg = Recording::open(&s).err().unwrap().to_string();
+        assert!(msg.contains("fake.h5") && msg.contains("HDF5"), "{msg}");
+    }
+}

@@ -1,0 +1,202 @@
+//! Recordings: reading event files of the common formats as a stream of core events.
+//!
+//! Every reader streams (constant memory, whatever the file size) and reports a bad record
+//! with the file and the line or offset where it is, never a panic. The format is chosen by
+//! content and extension ([`Format::detect`]).
+
+mod h5;
+mod text;
+
+pub use h5::{write_ecalib_h5, H5Reader};
+pub use text::{write_text, TextReader};
+
+use evcal_core::event::{Event, SensorSize};
+use std::{fmt, path::Path};
+
+/// A recording format evcal reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// One event per line, `t x y p`, `t` in seconds (the RPG event-camera dataset layout).
+    Text,
+    /// HDF5 with a dataset `events_data` of N x 4 `[x, y, p, t_seconds]` (E-Calib's layout).
+    EcalibH5,
+}
+
+impl Format {
+    /// Chooses the format of `path` by its first bytes (the HDF5 signature), falling back on
+    /// the extension.
+    pub fn detect(path: &Path) -> Result<Self, ReadError> {
+        use std::io::Read;
+        let mut head = [0u8; 8];
+        let mut f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
+        let n = f.read(&mut head).map_err(|e| ReadError::io(path, e))?;
+        if n == 8 && head == *b"\x89HDF\r\n\x1a\n" {
+            return Ok(Format::EcalibH5);
+        }
+        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+            Some("h5" | "hdf5") => Ok(Format::EcalibH5),
+            _ => Ok(Format::Text),
+        }
+    }
+
+    /// The format's name, as `evcal` prints it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Text => "text (t x y p)",
+            Format::EcalibH5 => "HDF5 (E-Calib events_data)",
+        }
+    }
+}
+
+/// Where in a file a problem was found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Position {
+    /// A line of a text file, from 1.
+    Line(u64),
+    /// A row of a table (an event index), from 0.
+    Row(u64),
+    /// Nowhere in particular (opening, metadata).
+    File,
+}
+
+/// A problem reading a recording: the file, where in it, and what.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReadError {
+    /// The file.
+    pub path: String,
+    /// Where in the file.
+    pub at: Position,
+    /// What is wrong.
+    pub message: String,
+}
+
+impl ReadError {
+    pub(crate) fn new(path: &Path, at: Position, message: impl Into<String>) -> Self {
+        Self { path: path.display().to_string(), at, message: message.into() }
+    }
+
+    pub(crate) fn io(path: &Path, e: std::io::Error) -> Self {
+        Self::new(path, Position::File, e.to_string())
+    }
+}
+
+impl fmt::Display for ReadError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.at {
+            Position::Line(l) => write!(f, "{}:{}: {}", self.path, l, self.message),
+            Position::Row(r) => write!(f, "{}: event {}: {}", self.path, r, self.message),
+            Position::File => write!(f, "{}: {}", self.path, self.message),
+        }
+    }
+}
+
+impl std::error::Error for ReadError {}
+
+/// An open recording: an iterator of events plus what the file says about itself.
+pub struct Recording {
+    /// The format.
+    pub format: Format,
+    /// Sensor size, when the file states it.
+    pub sensor: Option<SensorSize>,
+    /// Total events, when known without reading them all.
+    pub len: Option<u64>,
+    /// Bytes in the file, for progress.
+    pub file_bytes: u64,
+    events: Box<dyn EventSource>,
+}
+
+/// A streaming reader of one format.
+pub(crate) trait EventSource {
+    /// The next event, `None` at the end.
+    fn next_event(&mut self) -> Option<Result<Event, ReadError>>;
+    /// Bytes (or rows, scaled to bytes) consumed so far, for progress.
+    fn progress_bytes(&self) -> u64;
+}
+
+impl Recording {
+    /// Opens `path`, choosing the reader by [`Format::detect`].
+    pub fn open(path: &Path) -> Result<Self, ReadError> {
+        let format = Format::detect(path)?;
+        let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
+        match format {
+            Format::Text => {
+                let r = TextReader::open(path)?;
+                let sensor = r.sensor();
+                Ok(Self { format, sensor, len: None, file_bytes, events: Box::new(r) })
+            }
+            Format::EcalibH5 => {
+                let r = H5Reader::open(path)?;
+                let len = Some(r.len());
+                Ok(Self { format, sensor: None, len, file_bytes, events: Box::new(r) })
+            }
+        }
+    }
+
+    /// Bytes of the file consumed so far (approximate for HDF5), for progress bars.
+    pub fn progress_bytes(&self) -> u64 {
+        self.events.progress_bytes()
+    }
+}
+
+impl Iterator for Recording {
+    type Item = Result<Event, ReadError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        self.events.next_event()
+    }
+}
+
+/// Parses a sensor size: `WxH` (e.g. `346x260`) or a preset name (`davis346`, `dvxplorer`).
+pub fn parse_sensor(s: &str) -> Result<SensorSize, String> {
+    match s.to_ascii_lowercase().as_str() {
+        "davis346" | "davis" => return Ok(SensorSize::DAVIS346),
+        "dvxplorer" | "dvx" => return Ok(SensorSize::DVXPLORER),
+        _ => {}
+    }
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer"))?;
+    let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{s}'"))?;
+    let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{s}'"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("sensor size '{s}' must be at least 1x1"));
+    }
+    Ok(SensorSize::new(w, h))
+}
+
+/// The sensor a recording was most likely made with, from the largest coordinates seen:
+/// the smallest known sensor that holds them, else their bounding size.
+pub fn guess_sensor(max_x: u16, max_y: u16) -> SensorSize {
+    const KNOWN: [SensorSize; 6] = [
+        SensorSize::new(240, 180),
+        SensorSize::new(320, 320),
+        SensorSize::DAVIS346,
+        SensorSize::DVXPLORER,
+        SensorSize::new(1280, 720),
+        SensorSize::new(1280, 800),
+    ];
+    KNOWN
+        .into_iter()
+        .find(|s| max_x < s.width && max_y < s.height)
+        .unwrap_or(SensorSize::new(max_x.saturating_add(1), max_y.saturating_add(1)))
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    #[test]
+    fn sensors_parse() {
+        assert_eq!(parse_sensor("346x260"), Ok(SensorSize::DAVIS346));
+        assert_eq!(parse_sensor("DVXplorer"), Ok(SensorSize::DVXPLORER));
+        assert!(parse_sensor("346").unwrap_err().contains("WxH"));
+        assert!(parse_sensor("0x5").is_err());
+        assert!(parse_sensor("ax5").is_err());
+    }
+
+    #[test]
+    fn sensor_guess() {
+        assert_eq!(guess_sensor(345, 259), SensorSize::DAVIS346);
+        assert_eq!(guess_sensor(400, 100), SensorSize::DVXPLORER);
+        assert_eq!(guess_sensor(2000, 10), SensorSize::new(2001, 11));
+    }
+}
