@@ -86,13 +86,17 @@ impl Clock for () {
 /// The detection pipeline for windows of at most `N` events, at most `C` clusters per
 /// window, and a spatial hash of `B` buckets.
 #[derive(Debug, Clone)]
-pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX_CLUSTERS, const B: usize = HASH_BUCKETS>
-{
+pub struct Detector<
+    const N: usize = MAX_EVENTS_PER_WINDOW,
+    const C: usize = MAX_CLUSTERS,
+    const B: usize = HASH_BUCKETS,
+> {
     cfg: DetectConfig,
     filter: InputFilter,
     windower: Windower<N>,
     clusterer: Clusterer<N, C, B>,
     out: Detection<C>,
+    ready: bool,
 }
 
 impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
@@ -118,6 +122,7 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
                 },
                 centres: heapless::Vec::new(),
             },
+            ready: false,
         }
     }
 
@@ -130,20 +135,42 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
 
     /// Feeds one event; returns the window's detection when this event completes a window.
     pub fn push(&mut self, e: Event) -> Option<&Detection<C>> {
-        self.push_timed(e, &mut ())
+        if self.feed(e) {
+            Some(self.process(&mut ()))
+        } else {
+            None
+        }
     }
 
-    /// As [`push`](Self::push), measuring each stage with `clock`.
-    pub fn push_timed(&mut self, e: Event, clock: &mut impl Clock) -> Option<&Detection<C>> {
+    /// Feeds one event without processing: `true` when this event completes a window, which
+    /// must then be processed with [`process`](Self::process) before the next `feed`.
+    pub fn feed(&mut self, e: Event) -> bool {
         if self.filter.check(&e).is_err() {
-            return None;
+            return false;
         }
-        let info = self.windower.push(e)?;
-        let cfg = self.cfg;
-        let events = self.windower.events_mut();
-        self.out = Detection { info, stats: WindowStats::default(), centres: heapless::Vec::new() };
-        process(&mut self.clusterer, events, &cfg, &mut self.out, clock);
-        Some(&self.out)
+        match self.windower.push(e) {
+            Some(info) => {
+                self.out.info = info;
+                self.ready = true;
+                true
+            }
+            None => {
+                self.ready = false;
+                false
+            }
+        }
+    }
+
+    /// Clusters and fits the window that [`feed`](Self::feed) completed, measuring each stage
+    /// with `clock`. Without a completed window it returns the last detection unchanged.
+    pub fn process(&mut self, clock: &mut impl Clock) -> &Detection<C> {
+        if self.ready {
+            self.ready = false;
+            let cfg = self.cfg;
+            let events = self.windower.events_mut();
+            process(&mut self.clusterer, events, &cfg, &mut self.out, clock);
+        }
+        &self.out
     }
 
     /// What the input filter accepted and dropped.

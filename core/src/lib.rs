@@ -36,6 +36,7 @@
 
 pub mod cluster;
 pub mod config;
+pub mod detect;
 pub mod event;
 pub mod fit;
 pub mod window;

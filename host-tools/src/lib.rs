@@ -3,6 +3,7 @@
 
 pub mod calib;
 pub mod detections;
+pub mod eval;
 pub mod grid;
 pub mod recording;
 pub mod sim;

@@ -68,9 +68,9 @@ struct CoreArgs {
     #[arg(long)]
     sensor: Option<String>,
     /// Events per window (the paper: 4000; the firmware holds at most 4000).
-    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW,
-          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64).map(|v| v as usize))]
-    events_per_window: usize,
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW as u32,
+          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
+    events_per_window: u32,
     /// Milliseconds of event time between window ticks (the paper: 33).
     #[arg(long, default_value_t = 33.333)]
     step_ms: f64,
@@ -110,7 +110,10 @@ impl CoreArgs {
         }
         Ok(DetectConfig {
             sensor,
-            window: WindowConfig { events: self.events_per_window, step_us: (self.step_ms * 1000.0).round() as u64 },
+            window: WindowConfig {
+                events: self.events_per_window as usize,
+                step_us: (self.step_ms * 1000.0).round() as u64,
+            },
             cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts.max(1), eps_t: self.eps_t },
             fit: FitConfig {
                 method: match self.method {

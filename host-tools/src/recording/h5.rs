@@ -88,7 +88,7 @@ impl EventSource for H5Reader {
 
 fn row_to_event(x: f64, y: f64, p: f64, t: f64) -> Result<Event, String> {
     let coord = |v: f64, name: &str| -> Result<u16, String> {
-        if v.is_finite() && v >= 0.0 && v <= 65535.0 && v.fract() == 0.0 {
+        if (0.0..=65535.0).contains(&v) && v.fract() == 0.0 {
             Ok(v as u16)
         } else {
             Err(format!("bad {name} {v} (an integer pixel coordinate)"))

@@ -141,7 +141,7 @@ fn parse_event(line: &str) -> Result<Event, String> {
 fn seconds_to_us(s: &str) -> Option<u64> {
     if s.contains(['e', 'E']) {
         let v: f64 = s.parse().ok()?;
-        return (v.is_finite() && v >= 0.0 && v < 1.8e13).then(|| (v * 1e6).round() as u64);
+        return (0.0..1.8e13).contains(&v).then(|| (v * 1e6).round() as u64);
     }
     let s = s.strip_prefix('+').unwrap_or(s);
     let (int, frac) = s.split_once('.').unwrap_or((s, ""));
@@ -198,7 +198,12 @@ mod test {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("r.txt");
         let events: Vec<Event> = (0..1000u64)
-            .map(|i| Event { t_us: i * 37 + 5_000_000_000, x: (i % 346) as u16, y: (i % 260) as u16, polarity: i % 3 == 0 })
+            .map(|i| Event {
+                t_us: i * 37 + 5_000_000_000,
+                x: (i % 346) as u16,
+                y: (i % 260) as u16,
+                polarity: i % 3 == 0,
+            })
             .collect();
         write_text(&p, Some(SensorSize::DAVIS346), &events).unwrap();
         let rec = Recording::open(&p).unwrap();

@@ -1,0 +1,127 @@
+//! Scoring detections against simulated ground truth: centre errors and how often each true
+//! circle is found.
+
+use crate::detections::WindowRecord;
+use serde::Serialize;
+
+/// A true circle in one window, as the simulator knows it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrueCircle {
+    /// Centre of the projected circle outline at the window's t_ref, px.
+    pub centre: [f64; 2],
+    /// Mean projected radius, px.
+    pub radius_px: f64,
+    /// Whether the whole circle lies inside the sensor.
+    pub in_view: bool,
+}
+
+/// Which true circles count: wholly in view and at least this large.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScoreRules {
+    /// Smallest radius of a scored circle, px.
+    pub min_radius_px: f64,
+    /// A detection matches a true circle when its centre is within this fraction of the
+    /// radius (and within `max_match_px`).
+    pub match_fraction: f64,
+    /// Upper bound on the match distance, px.
+    pub max_match_px: f64,
+}
+
+impl Default for ScoreRules {
+    fn default() -> Self {
+        Self { min_radius_px: 5.0, match_fraction: 0.3, max_match_px: 2.0 }
+    }
+}
+
+/// Scores over many windows.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Score {
+    /// Windows scored.
+    pub windows: u64,
+    /// True circles scored (in view, large enough), over all windows.
+    pub circles: u64,
+    /// Of those, found by a detection.
+    pub found: u64,
+    /// Detections matching no scored true circle (clutter, partial circles, small circles).
+    pub unmatched_detections: u64,
+    /// Sum of squared centre errors of found circles, px².
+    pub sq_error_sum: f64,
+    /// Largest centre error of a found circle, px.
+    pub max_error_px: f64,
+}
+
+impl Score {
+    /// Fraction of scored true circles found.
+    pub fn found_rate(&self) -> f64 {
+        if self.circles == 0 {
+            0.0
+        } else {
+            self.found as f64 / self.circles as f64
+        }
+    }
+
+    /// RMS centre error of found circles, px.
+    pub fn rms_px(&self) -> f64 {
+        if self.found == 0 {
+            0.0
+        } else {
+            (self.sq_error_sum / self.found as f64).sqrt()
+        }
+    }
+
+    /// Adds one window: each scored true circle is matched to its nearest detection.
+    pub fn add(&mut self, window: &WindowRecord, truth: &[TrueCircle], rules: &ScoreRules) {
+        self.windows += 1;
+        let mut used = vec![false; window.centers.len()];
+        for t in truth.iter().filter(|t| t.in_view && t.radius_px >= rules.min_radius_px) {
+            self.circles += 1;
+            let limit = (rules.match_fraction * t.radius_px).min(rules.max_match_px);
+            let best = window
+                .centers
+                .iter()
+                .enumerate()
+                .map(|(i, c)| (i, (f64::from(c.u) - t.centre[0]).hypot(f64::from(c.v) - t.centre[1])))
+                .filter(|&(_, d)| d <= limit)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            if let Some((i, d)) = best {
+                used[i] = true;
+                self.found += 1;
+                self.sq_error_sum += d * d;
+                self.max_error_px = self.max_error_px.max(d);
+            }
+        }
+        self.unmatched_detections += used.iter().filter(|u| !**u).count() as u64;
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::detections::CenterRecord;
+
+    fn c(u: f32, v: f32) -> CenterRecord {
+        CenterRecord { u, v, r: 6.0, spread: 0.1, n: 50, converged: true }
+    }
+
+    #[test]
+    fn matches_nearest_within_limit() {
+        let w = WindowRecord {
+            seq: 0,
+            t_ref_us: 0,
+            events: 0,
+            noise: 0,
+            centers: vec![c(10.1, 10.0), c(50.0, 50.0), c(30.0, 30.0)],
+        };
+        let truth = [
+            TrueCircle { centre: [10.0, 10.0], radius_px: 6.0, in_view: true },
+            TrueCircle { centre: [30.0, 31.9], radius_px: 6.0, in_view: true }, // 1.9 px off: beyond 0.3 r
+            TrueCircle { centre: [80.0, 80.0], radius_px: 3.0, in_view: true }, // too small: not scored
+            TrueCircle { centre: [50.0, 50.0], radius_px: 6.0, in_view: false }, // partly out: not scored
+        ];
+        let mut s = Score::default();
+        s.add(&w, &truth, &ScoreRules::default());
+        assert_eq!((s.circles, s.found, s.unmatched_detections), (2, 1, 2));
+        assert!((s.rms_px() - 0.1).abs() < 1e-5);
+        assert!((s.found_rate() - 0.5).abs() < 1e-12);
+    }
+}
