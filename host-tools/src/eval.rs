@@ -94,6 +94,54 @@ impl Score {
     }
 }
 
+/// Simulates `seconds` of events (all kept in memory: about 16 bytes per event).
+pub fn simulate(
+    sim_cfg: crate::sim::SimConfig,
+    seconds: f64,
+) -> (Vec<evcal_core::event::Event>, crate::sim::Simulator) {
+    let mut sim = crate::sim::Simulator::new(sim_cfg);
+    let mut events = Vec::new();
+    sim.run_until(seconds, |batch| events.extend_from_slice(batch));
+    (events, sim)
+}
+
+/// Runs events through the detection core and calls `each` with every window's record and
+/// the simulator's truth at the window's `t_ref`.
+pub fn detect_with_truth(
+    events: &[evcal_core::event::Event],
+    sim: &crate::sim::Simulator,
+    det_cfg: evcal_core::detect::DetectConfig,
+    mut each: impl FnMut(&WindowRecord, &crate::sim::FrameTruth),
+) {
+    let mut det: Box<crate::detections::HostDetector> = Box::new(crate::detections::HostDetector::new(det_cfg));
+    for e in events {
+        if let Some(d) = det.push(*e) {
+            let r = WindowRecord::from_detection(d);
+            each(&r, &sim.truth_at(r.t_ref_us));
+        }
+    }
+}
+
+/// Scores every window of `events` against the simulator's truth.
+pub fn score(
+    events: &[evcal_core::event::Event],
+    sim: &crate::sim::Simulator,
+    det_cfg: evcal_core::detect::DetectConfig,
+    rules: &ScoreRules,
+) -> Score {
+    let mut s = Score::default();
+    detect_with_truth(events, sim, det_cfg, |w, t| s.add(w, &true_circles(t), rules));
+    s
+}
+
+/// The truth of a simulated frame in the form [`Score::add`] takes (ellipse centres).
+pub fn true_circles(t: &crate::sim::FrameTruth) -> Vec<TrueCircle> {
+    t.circles
+        .iter()
+        .map(|c| TrueCircle { centre: c.ellipse_centre, radius_px: c.radius_px, in_view: c.in_view })
+        .collect()
+}
+
 #[cfg(test)]
 mod test {
     use super::*;

@@ -1,1 +1,611 @@
-//! Simulated event camera watching an asymmetric circle grid, with ground truth.
+//! A simulated event camera watching an asymmetric circle grid, with ground truth.
+//!
+//! The simulator renders the scene ([`scene`]) through a distorted pinhole camera
+//! ([`camera`]) moving along a hand-held trajectory ([`trajectory`]) and turns the change of
+//! each pixel's log intensity into events the way a DVS pixel does:
+//!
+//! * an event fires when the log intensity has moved by the pixel's contrast threshold from
+//!   the level of its last event (thresholds differ per pixel: mismatch);
+//! * a pixel is blind for a refractory period after each event;
+//! * timestamps jitter (more in low light);
+//! * background activity fires at random pixels and times, hot pixels fire all the time;
+//! * in low light the scene is darker, so the dark current flattens the contrast, and noise
+//!   rates are much higher.
+//!
+//! Time advances in steps short enough that no edge moves more than a third of a pixel;
+//! crossing times are interpolated within a step. Pixels far from every edge are skipped until
+//! an edge could have reached them. Everything is seeded: the same configuration gives the
+//! same events, on any machine, whatever the number of threads.
+
+pub mod camera;
+pub mod scene;
+pub mod trajectory;
+
+pub use camera::{Camera, Pose};
+pub use scene::{Board, Scene};
+pub use trajectory::Trajectory;
+
+use evcal_core::event::Event;
+use nalgebra::Vector3;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal, Poisson};
+use serde::{Deserialize, Serialize};
+
+/// Lighting presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Light {
+    /// An office-lit board: low noise.
+    Good,
+    /// A dim room: a twentieth of the light, ten times the background activity, more jitter.
+    Low,
+}
+
+impl Light {
+    /// Name as the CLI spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Light::Good => "good",
+            Light::Low => "low",
+        }
+    }
+}
+
+/// The sensor's pixel model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct PixelModel {
+    /// Mean contrast threshold (ON and OFF), log units.
+    pub threshold: f64,
+    /// Pixel-to-pixel standard deviation of the thresholds, log units.
+    pub mismatch: f64,
+    /// Refractory period, seconds.
+    pub refractory_s: f64,
+    /// Standard deviation of timestamp jitter, seconds (clipped at 4σ).
+    pub jitter_s: f64,
+    /// Background activity rate per pixel, Hz.
+    pub background_hz: f64,
+    /// Fraction of pixels that are hot.
+    pub hot_fraction: f64,
+    /// Event rate of a hot pixel, Hz.
+    pub hot_hz: f64,
+    /// Scene illumination (1 = office light).
+    pub illumination: f64,
+    /// Dark signal in the same units as illumination × reflectance: flattens dark contrast.
+    pub dark: f64,
+}
+
+impl PixelModel {
+    /// The model for a lighting preset.
+    pub fn for_light(light: Light) -> Self {
+        match light {
+            Light::Good => Self {
+                threshold: 0.25,
+                mismatch: 0.03,
+                refractory_s: 100e-6,
+                jitter_s: 15e-6,
+                background_hz: 0.1,
+                hot_fraction: 1e-4,
+                hot_hz: 400.0,
+                illumination: 1.0,
+                dark: 0.004,
+            },
+            Light::Low => Self {
+                threshold: 0.25,
+                mismatch: 0.04,
+                refractory_s: 300e-6,
+                jitter_s: 150e-6,
+                background_hz: 1.5,
+                hot_fraction: 3e-4,
+                hot_hz: 800.0,
+                illumination: 0.05,
+                dark: 0.004,
+            },
+        }
+    }
+}
+
+/// Everything a simulation depends on.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SimConfig {
+    /// The camera (intrinsics, distortion, sensor size).
+    pub camera: Camera,
+    /// The grid.
+    pub board: Board,
+    /// The motion.
+    pub trajectory: Trajectory,
+    /// The lighting preset the pixel model came from.
+    pub light: Light,
+    /// The pixel model.
+    pub pixel: PixelModel,
+    /// Typical distance from camera to board, metres.
+    pub distance: f64,
+    /// Edge blur at the focus distance, pixels (σ of a Gaussian).
+    pub blur_px: f64,
+    /// Extra blur per unit of relative distance from the focus distance, pixels.
+    pub defocus_px: f64,
+    /// Shapes on the background wall.
+    pub clutter: usize,
+    /// Seed of every random choice.
+    pub seed: u64,
+    /// Timestamp of the first instant, microseconds (a nonzero start exercises readers).
+    pub start_us: u64,
+}
+
+impl SimConfig {
+    /// A configuration from the presets: sensor `davis346` or `dvxplorer`, pattern `3x7`,
+    /// `3x9` or `4x11`. `None` for an unknown name.
+    pub fn preset(sensor: &str, pattern: &str, trajectory: Trajectory, light: Light, seed: u64) -> Option<Self> {
+        let camera = match sensor {
+            "davis346" => Camera::davis346(),
+            "dvxplorer" => Camera::dvxplorer(),
+            _ => return None,
+        };
+        let board = Board::preset(pattern)?;
+        // Far enough that the grid can sweep the view, near enough that circles stay several
+        // pixels wide.
+        let grid_w = (board.cols - 1) as f64 * board.spacing + 2.0 * board.radius;
+        let half_fov = (f64::from(camera.width) * 0.5 / camera.fx).atan();
+        let distance = grid_w / (FILL * 2.0 * half_fov.tan());
+        Some(Self {
+            camera,
+            board,
+            trajectory,
+            light,
+            pixel: PixelModel::for_light(light),
+            distance,
+            blur_px: 0.6,
+            defocus_px: 1.5,
+            clutter: 60,
+            seed,
+            start_us: 0,
+        })
+    }
+}
+
+/// The true state of one circle at one instant.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct CircleTruth {
+    /// Index in the grid, `i·rows + j`.
+    pub index: usize,
+    /// Centre of the projected outline (the ellipse's centre; what a circle fit to the edge
+    /// estimates), pixels.
+    pub ellipse_centre: [f64; 2],
+    /// Projection of the circle's centre (differs from the ellipse centre under
+    /// perspective), pixels.
+    pub projected_centre: [f64; 2],
+    /// Mean distance of the projected outline from its centre, pixels.
+    pub radius_px: f64,
+    /// Whether the whole outline is inside the sensor (and in front of the camera).
+    pub in_view: bool,
+}
+
+/// The truth at one instant.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FrameTruth {
+    /// The instant, microseconds.
+    pub t_us: u64,
+    /// Board → camera rotation (Rodrigues vector).
+    pub rvec: [f64; 3],
+    /// Board → camera translation, metres.
+    pub tvec: [f64; 3],
+    /// Every circle of the grid.
+    pub circles: Vec<CircleTruth>,
+}
+
+/// Fraction of the sensor's width the grid spans at the typical distance.
+const FILL: f64 = 0.7;
+
+/// Points on a circle's outline used to find its projected centre and radius.
+const OUTLINE_POINTS: usize = 96;
+
+/// The simulator.
+pub struct Simulator {
+    cfg: SimConfig,
+    scene: Scene,
+    /// Per pixel: the ray through its centre in camera coordinates (z = 1).
+    rays: Vec<[f64; 2]>,
+    pixels: Vec<PixelState>,
+    hot: Vec<u32>,
+    rng: ChaCha8Rng,
+    fov_half: [f64; 2],
+    /// Simulated time reached, seconds since start.
+    t: f64,
+    pending: Vec<Event>,
+    started: bool,
+}
+
+/// One band's step: threshold crossings (pixel, time, ±1) and the pixels' new states.
+type BandResult = (Vec<(usize, f64, f64)>, Vec<(usize, PixelState)>);
+
+#[derive(Debug, Clone, Copy)]
+struct PixelState {
+    /// Log intensity at the last evaluation.
+    level: f64,
+    /// Log intensity of the last event (the reference the thresholds count from).
+    reference: f64,
+    on: f64,
+    off: f64,
+    /// Time of the last event, s.
+    last: f64,
+    /// Next time this pixel must be evaluated, s.
+    next_eval: f64,
+}
+
+impl Simulator {
+    /// A simulator at time 0.
+    pub fn new(cfg: SimConfig) -> Self {
+        let cam = cfg.camera;
+        let (w, h) = (usize::from(cam.width), usize::from(cam.height));
+        let mut rays = Vec::with_capacity(w * h);
+        for y in 0..h {
+            for x in 0..w {
+                rays.push(cam.undistort(x as f64, y as f64));
+            }
+        }
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let thr = Normal::new(cfg.pixel.threshold, cfg.pixel.mismatch.max(0.0)).expect("finite threshold");
+        let floor = cfg.pixel.threshold * 0.3;
+        let pixels = (0..w * h)
+            .map(|_| PixelState {
+                level: 0.0,
+                reference: 0.0,
+                on: thr.sample(&mut rng).max(floor),
+                off: thr.sample(&mut rng).max(floor),
+                last: f64::NEG_INFINITY,
+                next_eval: 0.0,
+            })
+            .collect();
+        let n_hot = ((w * h) as f64 * cfg.pixel.hot_fraction).round() as usize;
+        let hot = (0..n_hot).map(|_| rng.random_range(0..(w * h) as u32)).collect();
+        let fov_half =
+            [(f64::from(cam.width) * 0.5 / cam.fx).atan() * 0.9, (f64::from(cam.height) * 0.5 / cam.fy).atan() * 0.9];
+        let scene = Scene::new(cfg.board, cfg.clutter, cfg.seed);
+        Self { cfg, scene, rays, pixels, hot, rng, fov_half, t: 0.0, pending: Vec::new(), started: false }
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SimConfig {
+        &self.cfg
+    }
+
+    /// The camera pose at `t` seconds since the start.
+    pub fn pose_at(&self, t: f64) -> Pose {
+        self.cfg.trajectory.pose(&self.cfg.board, self.cfg.distance, self.fov_half, t)
+    }
+
+    fn blur(&self, depth: f64) -> f64 {
+        let rel = ((depth - self.cfg.distance) / self.cfg.distance).abs();
+        // A pixel integrates over its area: a box of width 1 adds variance 1/12.
+        (self.cfg.blur_px.powi(2) + (self.cfg.defocus_px * rel).powi(2) + 1.0 / 12.0).sqrt()
+    }
+
+    /// Log intensity at pixel `p` for `pose`, and the distance to the nearest edge (px).
+    fn log_intensity(&self, to_board: &nalgebra::Matrix3<f64>, origin: [f64; 3], p: usize) -> (f64, f64) {
+        let [x, y] = self.rays[p];
+        let d = to_board * Vector3::new(x, y, 1.0);
+        let focal = self.cfg.camera.fx.min(self.cfg.camera.fy);
+        let (refl, dist) = self.scene.shade(origin, [d.x, d.y, d.z], focal, |depth| self.blur(depth));
+        let px = &self.cfg.pixel;
+        ((px.illumination * refl + px.dark).ln(), dist)
+    }
+
+    /// Image speed bound, px/s, around time `t`: the fastest of sample points on the board
+    /// and the wall, doubled for safety.
+    fn speed_bound(&self, t: f64) -> f64 {
+        let dt = 1e-3;
+        let (p0, p1) = (self.pose_at(t), self.pose_at(t + dt));
+        let sheet = self.cfg.board.sheet();
+        let mut pts: Vec<Vector3<f64>> = vec![
+            Vector3::new(sheet[0], sheet[1], 0.0),
+            Vector3::new(sheet[2], sheet[1], 0.0),
+            Vector3::new(sheet[0], sheet[3], 0.0),
+            Vector3::new(sheet[2], sheet[3], 0.0),
+        ];
+        // Wall points seen at the image corners.
+        let origin = p0.centre();
+        let cam = &self.cfg.camera;
+        for (u, v) in [
+            (0.0, 0.0),
+            (f64::from(cam.width), 0.0),
+            (0.0, f64::from(cam.height)),
+            (f64::from(cam.width), f64::from(cam.height)),
+        ] {
+            let [x, y] = cam.undistort(u, v);
+            let d = p0.rotation.inverse() * Vector3::new(x, y, 1.0);
+            if d.z.abs() > 1e-9 {
+                let s = (self.scene.wall_depth - origin.z) / d.z;
+                if s > 0.0 {
+                    pts.push(origin + d * s);
+                }
+            }
+        }
+        let mut fastest = 0.0f64;
+        for p in &pts {
+            if let (Some(a), Some(b)) = (cam.project(&p0.apply(p)), cam.project(&p1.apply(p))) {
+                fastest = fastest.max(((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2)).sqrt() / dt);
+            }
+        }
+        2.0 * fastest + 20.0
+    }
+
+    /// Simulates until `seconds` since the start, handing events in time order to `sink`
+    /// in batches. Call again to continue. Returns the number of events produced.
+    pub fn run_until(&mut self, seconds: f64, mut sink: impl FnMut(&[Event])) -> u64 {
+        let cam = self.cfg.camera;
+        let (w, npix) = (usize::from(cam.width), self.pixels.len());
+        let px = self.cfg.pixel;
+        let jitter_cap = 4.0 * px.jitter_s;
+        let mut produced = 0u64;
+        if !self.started {
+            self.started = true;
+            let pose = self.pose_at(0.0);
+            let origin: [f64; 3] = pose.centre().into();
+            let to_board = *pose.rotation.inverse().matrix();
+            for p in 0..npix {
+                let (l, _) = self.log_intensity(&to_board, origin, p);
+                let st = &mut self.pixels[p];
+                st.level = l;
+                // Pixels start at random points of their threshold cycle, as after any history.
+                st.reference = l + self.rng.random_range(-st.off..st.on) * 0.999;
+            }
+        }
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(8);
+        let noise_rate = px.background_hz * npix as f64;
+        while self.t < seconds {
+            let speed = self.speed_bound(self.t);
+            let dt = (0.33 / speed).clamp(5e-6, 2e-3).min(seconds - self.t).max(1e-7);
+            let (t0, t1) = (self.t, self.t + dt);
+            let pose = self.pose_at(t1);
+            let origin: [f64; 3] = pose.centre().into();
+            // Edge pixels, in parallel bands of rows; each band writes its own events.
+            let band = npix.div_ceil(threads).div_ceil(w) * w;
+            let sim = &*self;
+            let mut results: Vec<BandResult> = Vec::new();
+            std::thread::scope(|s| {
+                let handles: Vec<_> = (0..npix)
+                    .step_by(band.max(1))
+                    .map(|start| {
+                        let end = (start + band).min(npix);
+                        s.spawn(move || sim.step_band(start, end, &pose, origin, t0, t1, speed))
+                    })
+                    .collect();
+                for h in handles {
+                    results.push(h.join().expect("simulator band panicked"));
+                }
+            });
+            let mut fresh: Vec<Event> = Vec::new();
+            for (events, states) in results {
+                for (p, st) in states {
+                    self.pixels[p] = st;
+                }
+                for (p, t, pol) in events {
+                    fresh.push(self.stamp(p, t, pol > 0.0, w));
+                }
+            }
+            // Background activity and hot pixels: independent of the scene.
+            let noise = |rng: &mut ChaCha8Rng, rate: f64| -> u64 {
+                if rate * dt <= 0.0 {
+                    return 0;
+                }
+                Poisson::new(rate * dt).map(|d| d.sample(rng) as u64).unwrap_or(0)
+            };
+            let n_bg = noise(&mut self.rng, noise_rate);
+            for _ in 0..n_bg {
+                let p = self.rng.random_range(0..npix);
+                let t = self.rng.random_range(t0..t1);
+                let pol = self.rng.random_bool(0.5);
+                fresh.push(self.stamp(p, t, pol, w));
+            }
+            for k in 0..self.hot.len() {
+                let n = noise(&mut self.rng, px.hot_hz);
+                for _ in 0..n {
+                    let t = self.rng.random_range(t0..t1);
+                    let pol = self.rng.random_bool(0.5);
+                    fresh.push(self.stamp(self.hot[k] as usize, t, pol, w));
+                }
+            }
+            self.pending.append(&mut fresh);
+            // Jitter is at most `jitter_cap`: events before t1 − cap can no longer be
+            // overtaken by later ones.
+            let horizon = self.to_us(if t1 >= seconds { f64::INFINITY } else { t1 - jitter_cap });
+            self.pending.sort_unstable_by_key(|e| (e.t_us, e.y, e.x, e.polarity));
+            let ready = self.pending.partition_point(|e| e.t_us < horizon);
+            if ready > 0 {
+                sink(&self.pending[..ready]);
+                produced += ready as u64;
+                self.pending.drain(..ready);
+            }
+            self.t = t1;
+        }
+        produced
+    }
+
+    fn to_us(&self, t: f64) -> u64 {
+        if t.is_infinite() {
+            return u64::MAX;
+        }
+        self.cfg.start_us + (t.max(0.0) * 1e6).round() as u64
+    }
+
+    fn stamp(&mut self, p: usize, t: f64, polarity: bool, w: usize) -> Event {
+        let px = self.cfg.pixel;
+        let j = if px.jitter_s > 0.0 {
+            let n: f64 = rand_distr::StandardNormal.sample(&mut self.rng);
+            n.clamp(-4.0, 4.0) * px.jitter_s
+        } else {
+            0.0
+        };
+        Event { t_us: self.to_us(t + j), x: (p % w) as u16, y: (p / w) as u16, polarity }
+    }
+
+    /// Advances pixels `start..end` from `t0` to `t1`: new states and threshold crossings
+    /// (pixel, time, +1/−1).
+    #[allow(clippy::too_many_arguments)]
+    fn step_band(
+        &self,
+        start: usize,
+        end: usize,
+        pose: &Pose,
+        origin: [f64; 3],
+        t0: f64,
+        t1: f64,
+        speed: f64,
+    ) -> BandResult {
+        let mut events = Vec::new();
+        let mut states = Vec::new();
+        let refractory = self.cfg.pixel.refractory_s;
+        let to_board = *pose.rotation.inverse().matrix();
+        // Edge zones already include their blur; one pixel more for the pixel's own extent
+        // and the tilt of the plane (distances are measured along it).
+        let margin = 1.0;
+        for p in start..end {
+            let mut st = self.pixels[p];
+            if st.next_eval > t1 {
+                continue;
+            }
+            let (l1, dist) = self.log_intensity(&to_board, origin, p);
+            let l0 = st.level;
+            loop {
+                let (level, sign) = if l1 - st.reference >= st.on {
+                    (st.reference + st.on, 1.0)
+                } else if st.reference - l1 >= st.off {
+                    (st.reference - st.off, -1.0)
+                } else {
+                    break;
+                };
+                let span = l1 - l0;
+                let frac = if span.abs() > 1e-12 { ((level - l0) / span).clamp(0.0, 1.0) } else { 1.0 };
+                let tc = (t0 + frac * (t1 - t0)).max(st.last + refractory);
+                if tc > t1 {
+                    break; // still blind: fires in a later step if the change persists
+                }
+                events.push((p, tc, sign));
+                st.reference = level;
+                st.last = tc;
+            }
+            st.level = l1;
+            // Beyond an edge's blurred zone a pixel is flat until an edge could have travelled
+            // the difference.
+            st.next_eval = if dist > margin { t1 + (dist - margin) / speed } else { t1 };
+            states.push((p, st));
+        }
+        (events, states)
+    }
+
+    /// Ground truth at `t_us` (timestamps as the events carry them).
+    pub fn truth_at(&self, t_us: u64) -> FrameTruth {
+        let t = t_us.saturating_sub(self.cfg.start_us) as f64 * 1e-6;
+        truth(&self.cfg, &self.pose_at(t), t_us)
+    }
+}
+
+/// The true image of every circle for a pose.
+pub fn truth(cfg: &SimConfig, pose: &Pose, t_us: u64) -> FrameTruth {
+    let cam = &cfg.camera;
+    let (w, h) = (f64::from(cam.width), f64::from(cam.height));
+    let circles = cfg
+        .board
+        .centres()
+        .into_iter()
+        .enumerate()
+        .map(|(index, [cx, cy])| {
+            let r = cfg.board.radius;
+            let mut pts = Vec::with_capacity(OUTLINE_POINTS);
+            let mut visible = true;
+            for k in 0..OUTLINE_POINTS {
+                let a = std::f64::consts::TAU * k as f64 / OUTLINE_POINTS as f64;
+                match cam.project(&pose.apply(&Vector3::new(cx + r * a.cos(), cy + r * a.sin(), 0.0))) {
+                    Some(p) => {
+                        visible &= p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= w - 1.0 && p[1] <= h - 1.0;
+                        pts.push(p)
+                    }
+                    None => visible = false,
+                }
+            }
+            let centre = polygon_centroid(&pts);
+            let radius_px =
+                pts.iter().map(|p| ((p[0] - centre[0]).powi(2) + (p[1] - centre[1]).powi(2)).sqrt()).sum::<f64>()
+                    / pts.len().max(1) as f64;
+            let projected_centre = cam.project(&pose.apply(&Vector3::new(cx, cy, 0.0))).unwrap_or([f64::NAN; 2]);
+            CircleTruth { index, ellipse_centre: centre, projected_centre, radius_px, in_view: visible }
+        })
+        .collect();
+    FrameTruth { t_us, rvec: pose.rvec(), tvec: pose.tvec(), circles }
+}
+
+/// Centroid of the area a closed outline encloses: for an ellipse, its centre.
+fn polygon_centroid(pts: &[[f64; 2]]) -> [f64; 2] {
+    let (mut a, mut cx, mut cy) = (0.0, 0.0, 0.0);
+    for k in 0..pts.len() {
+        let [x0, y0] = pts[k];
+        let [x1, y1] = pts[(k + 1) % pts.len()];
+        let cross = x0 * y1 - x1 * y0;
+        a += cross;
+        cx += (x0 + x1) * cross;
+        cy += (y0 + y1) * cross;
+    }
+    if a.abs() < 1e-12 {
+        return [f64::NAN; 2];
+    }
+    [cx / (3.0 * a), cy / (3.0 * a)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn short(light: Light, seconds: f64) -> (Vec<Event>, Simulator) {
+        let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, light, 7).unwrap();
+        let mut sim = Simulator::new(cfg);
+        let mut out = Vec::new();
+        sim.run_until(seconds, |b| out.extend_from_slice(b));
+        (out, sim)
+    }
+
+    #[test]
+    fn events_are_ordered_inside_the_sensor_and_deterministic() {
+        let (a, sim) = short(Light::Good, 0.05);
+        assert!(a.len() > 10_000, "only {} events in 50 ms", a.len());
+        assert!(a.windows(2).all(|w| w[0].t_us <= w[1].t_us));
+        let c = sim.config().camera;
+        assert!(a.iter().all(|e| e.x < c.width && e.y < c.height));
+        let (b, _) = short(Light::Good, 0.05);
+        assert_eq!(a, b);
+    }
+
+    #[test]
+    fn events_gather_on_the_circle_edges() {
+        let (ev, sim) = short(Light::Good, 0.03);
+        let truth = sim.truth_at(15_000);
+        let near = ev
+            .iter()
+            .filter(|e| (10_000..20_000).contains(&e.t_us))
+            .filter(|e| {
+                truth.circles.iter().any(|c| {
+                    let d = ((f64::from(e.x) - c.ellipse_centre[0]).powi(2)
+                        + (f64::from(e.y) - c.ellipse_centre[1]).powi(2))
+                    .sqrt();
+                    (d - c.radius_px).abs() < 3.0
+                })
+            })
+            .count();
+        let all = ev.iter().filter(|e| (10_000..20_000).contains(&e.t_us)).count();
+        assert!(near as f64 > 0.5 * all as f64, "{near} of {all} events near circle edges");
+    }
+
+    #[test]
+    fn truth_ellipse_centre_is_near_projected_centre_and_in_view_is_honest() {
+        let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, 1).unwrap();
+        let sim = Simulator::new(cfg);
+        let t = sim.truth_at(500_000);
+        for c in &t.circles {
+            let d = ((c.ellipse_centre[0] - c.projected_centre[0]).powi(2)
+                + (c.ellipse_centre[1] - c.projected_centre[1]).powi(2))
+            .sqrt();
+            assert!(d < 0.3, "ellipse vs projected centre {d}");
+            assert!(c.radius_px > 3.0 && c.radius_px < 15.0, "{}", c.radius_px);
+        }
+        assert!(t.circles.iter().filter(|c| c.in_view).count() >= 30);
+    }
+}
