@@ -1,0 +1,176 @@
+//! What several commands share: the core's options, sensor resolution, progress bars,
+//! simulation with truth.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, ValueEnum};
+use evcal_core::{
+    cluster::ClusterConfig,
+    detect::DetectConfig,
+    event::{Event, SensorSize},
+    fit::{FitConfig, FitMethod},
+    window::WindowConfig,
+};
+use evcal_host::{
+    detections,
+    recording::{guess_sensor, parse_sensor, Recording},
+    sim::{FrameTruth, SimConfig, Simulator},
+};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::{io::BufWriter, path::Path};
+
+#[derive(Args, Clone)]
+pub struct CoreArgs {
+    /// Sensor size, WxH (e.g. 346x260) or davis346 / dvxplorer. Default: from the file, else
+    /// guessed from the largest coordinates (a note says so).
+    #[arg(long)]
+    pub sensor: Option<String>,
+    /// Events per window (the paper: 4000; the firmware holds at most 4000).
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW as u32,
+          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
+    pub events_per_window: u32,
+    /// Milliseconds of event time between window ticks (the paper: 33).
+    #[arg(long, default_value_t = 33.333)]
+    pub step_ms: f64,
+    /// DBSCAN radius, in coordinates normalised by the sensor size.
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS)]
+    pub eps: f32,
+    /// DBSCAN minimum points in a neighbourhood (the point included).
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_MIN_PTS)]
+    pub min_pts: u16,
+    /// Use ST-DBSCAN: neighbours must also be within this fraction of the window's duration.
+    #[arg(long)]
+    pub eps_t: Option<f32>,
+    /// Circle fit: erwls (the method), ols or centroid (for comparison).
+    #[arg(long, value_enum, default_value_t = Method::Erwls)]
+    pub method: Method,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+pub enum Method {
+    Erwls,
+    Ols,
+    Centroid,
+}
+
+impl CoreArgs {
+    pub fn config(&self, sensor: SensorSize) -> Result<DetectConfig> {
+        if !(self.step_ms.is_finite() && self.step_ms >= 0.0) {
+            bail!("--step-ms must be a non-negative number of milliseconds");
+        }
+        if !(self.eps.is_finite() && self.eps > 0.0 && self.eps < 1.0) {
+            bail!("--eps must be between 0 and 1 (normalised coordinates; the paper uses 0.015)");
+        }
+        if let Some(t) = self.eps_t {
+            if !(t.is_finite() && t > 0.0) {
+                bail!("--eps-t must be a positive fraction of the window's duration");
+            }
+        }
+        Ok(DetectConfig {
+            sensor,
+            window: WindowConfig {
+                events: self.events_per_window as usize,
+                step_us: (self.step_ms * 1000.0).round() as u64,
+            },
+            cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts.max(1), eps_t: self.eps_t },
+            fit: FitConfig {
+                method: match self.method {
+                    Method::Erwls => FitMethod::Erwls,
+                    Method::Ols => FitMethod::Ols,
+                    Method::Centroid => FitMethod::Centroid,
+                },
+                ..FitConfig::default()
+            },
+        })
+    }
+}
+
+/// The sensor size: given, else from the file, else guessed from a pass over the events.
+pub fn resolve_sensor(given: Option<&str>, path: &Path, rec: &Recording, quiet: bool) -> Result<SensorSize> {
+    if let Some(s) = given {
+        return parse_sensor(s).map_err(anyhow::Error::msg);
+    }
+    if let Some(s) = rec.sensor {
+        return Ok(s);
+    }
+    let (mut mx, mut my, mut any) = (0u16, 0u16, false);
+    for e in Recording::open(path)? {
+        let e = e?;
+        mx = mx.max(e.x);
+        my = my.max(e.y);
+        any = true;
+    }
+    if !any {
+        bail!("{}: no events", path.display());
+    }
+    let s = guess_sensor(mx, my);
+    if !quiet {
+        eprintln!(
+            "evcal: note: {} does not state its sensor size; using {}x{} (largest x {}, y {}); set --sensor WxH to be sure",
+            path.display(),
+            s.width,
+            s.height,
+            mx,
+            my
+        );
+    }
+    Ok(s)
+}
+
+pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(len);
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} {msg:12} [{bar:30}] {percent:>3}% {elapsed} eta {eta}  {prefix}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    pb.set_message(what.to_string());
+    pb
+}
+
+/// Simulates with a progress bar; all events in memory.
+pub fn run_simulation(cfg: SimConfig, seconds: f64, quiet: bool) -> Result<(Vec<Event>, Simulator)> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
+        bail!("--seconds must be between 0 and 3600");
+    }
+    let mut sim = Simulator::new(cfg);
+    let pb = progress_bar((seconds * 1000.0) as u64, quiet, "simulating");
+    let mut events = Vec::new();
+    let mut t = 0.0;
+    while t < seconds {
+        t = (t + 0.05).min(seconds);
+        sim.run_until(t, |b| events.extend_from_slice(b));
+        pb.set_position((t * 1000.0) as u64);
+        pb.set_prefix(format!("{} events", events.len()));
+    }
+    pb.finish_and_clear();
+    Ok((events, sim))
+}
+
+/// The truth of every window the detector cuts from `events`.
+pub fn window_truths(events: &[Event], sim: &Simulator, window: WindowConfig) -> Vec<(u32, FrameTruth)> {
+    let mut w: Box<evcal_core::window::Windower<{ detections::HOST_MAX_EVENTS }>> =
+        Box::new(evcal_core::window::Windower::new(window));
+    events.iter().filter_map(|e| w.push(*e)).map(|info| (info.seq, sim.truth_at(info.t_ref_us))).collect()
+}
+
+pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)]) -> serde_json::Value {
+    let c = sim.config();
+    serde_json::json!({
+        "camera": c.camera,
+        "board": { "rows": c.board.rows, "cols": c.board.cols, "spacing": c.board.spacing, "radius": c.board.radius },
+        "trajectory": c.trajectory.name(),
+        "light": c.light.name(),
+        "seed": c.seed,
+        "windows": windows.iter().map(|(seq, t)| serde_json::json!({
+            "seq": seq, "t_ref_us": t.t_us, "rvec": t.rvec, "tvec": t.tvec, "circles": t.circles,
+        })).collect::<Vec<_>>(),
+    })
+}
+
+pub fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
+    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+    serde_json::to_writer(BufWriter::new(f), v).with_context(|| format!("writing {}", path.display()))
+}

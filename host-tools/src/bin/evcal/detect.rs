@@ -1,0 +1,75 @@
+//! `evcal detect`: the detection core over a recording, one JSON line per window.
+
+use crate::common::{progress_bar, resolve_sensor, CoreArgs};
+use anyhow::{Context, Result};
+use clap::Args;
+use evcal_host::{
+    detections::{self, WindowRecord},
+    recording::Recording,
+};
+use std::{
+    io::{BufWriter, Write},
+    path::PathBuf,
+};
+
+#[derive(Args)]
+pub struct DetectArgs {
+    /// The recording: text (`t x y p`, t in seconds) or HDF5 (E-Calib's `events_data`).
+    pub recording: PathBuf,
+    #[command(flatten)]
+    pub core: CoreArgs,
+    /// Write the JSON lines here instead of standard output.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// No progress bar or summary on standard error.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+pub fn run(a: DetectArgs) -> Result<()> {
+    let rec = Recording::open(&a.recording)?;
+    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, a.quiet)?;
+    let cfg = a.core.config(sensor)?;
+    let mut out: Box<dyn Write> = match &a.out {
+        Some(p) => Box::new(BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => Box::new(BufWriter::new(std::io::stdout().lock())),
+    };
+    let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
+    let mut write_err: Option<std::io::Error> = None;
+    let mut rec = rec;
+    let mut counter = 0u64;
+    // The progress position is read off the reader between events.
+    let progress = std::cell::Cell::new(0u64);
+    let events = std::iter::from_fn(|| {
+        let e = rec.next();
+        counter += 1;
+        if counter % 65_536 == 0 {
+            progress.set(rec.progress_bytes());
+        }
+        e
+    });
+    let summary = detections::run(events, cfg, |d| {
+        pb.set_position(progress.get());
+        pb.set_prefix(format!("windows {}", d.info.seq + 1));
+        if write_err.is_none() {
+            if let Err(e) = writeln!(out, "{}", WindowRecord::from_detection(d).to_json_line()) {
+                write_err = Some(e);
+            }
+        }
+    });
+    pb.finish_and_clear();
+    if let Some(e) = write_err {
+        return Err(e).context("writing detections");
+    }
+    out.flush().context("writing detections")?;
+    let s = summary?;
+    if !a.quiet {
+        eprintln!(
+            "evcal: {} events, {} windows, {} centres; dropped: {} outside the sensor, {} back in time, {} clusters over capacity; {} events of an unfinished last window left out",
+            s.events_read, s.windows, s.centres, s.out_of_sensor, s.time_backwards, s.dropped_clusters, s.events_in_last_partial_window
+        );
+    }
+    Ok(())
+}
