@@ -49,8 +49,19 @@ impl Decoder {
                 VECT_12 => self.vector(u32::from(w & 0xFFF), 12, out, n),
                 VECT_8 => self.vector(u32::from(w & 0xFF), 8, out, n),
                 TIME_LOW => {
-                    self.time_low = w & 0xFFF;
-                    self.base = (self.base & !0xFFF) | u64::from(self.time_low);
+                    let low = w & 0xFFF;
+                    if low < self.time_low && self.high.seen {
+                        // The low counter wrapped within one TIME_HIGH period: as the
+                        // specification says, the high part moves on by one. (Sensors send a
+                        // new TIME_HIGH first, so this only acts on streams that leave it out,
+                        // such as expelliarmus's.)
+                        let high = (self.high.last + 1) & 0xFFF;
+                        let epoch = self.high.update(high, HIGH_BITS, CLOCK_BITS, &mut self.stats);
+                        self.base = epoch + (u64::from(high) << 12);
+                        self.stats.time_low_wraps += 1;
+                    }
+                    self.time_low = low;
+                    self.base = (self.base & !0xFFF) | u64::from(low);
                 }
                 TIME_HIGH => {
                     let high = u32::from(w & 0xFFF);

@@ -59,6 +59,10 @@
 //! `TIME_HIGH` smaller than the previous one by more than half its range is a wrap and moves
 //! the time on by the full range, so event times are 64-bit and monotonic across wraps; a
 //! smaller step back is taken as it is and counted ([`DecodeStats::time_high_steps_back`]).
+//! In EVT 3.0, an `EVT_TIME_LOW` smaller than the one before within the same `TIME_HIGH`
+//! period means the low counter wrapped, and the high part moves on by one, as the
+//! specification says ([`DecodeStats::time_low_wraps`]): sensors send the new `TIME_HIGH`
+//! first, but some writers (expelliarmus) leave it out.
 //! As the specifications say, decoding starts at the first `TIME_HIGH`: CD words before it
 //! (and, in EVT 3.0, before the first `EVT_ADDR_Y` or vector base) have no complete time or
 //! address, so their events are dropped and counted in [`DecodeStats::unsynced`], never
@@ -145,6 +149,10 @@ pub struct DecodeStats {
     /// `TIME_HIGH` words smaller than the previous one by less than half the range: not a
     /// wrap, so time steps back (a corrupt or spliced stream).
     pub time_high_steps_back: u64,
+    /// EVT 3.0 `EVT_TIME_LOW` words smaller than the one before in the same `TIME_HIGH`
+    /// period: the low counter wrapped without a new `TIME_HIGH`, so the high part was moved
+    /// on by one.
+    pub time_low_wraps: u64,
 }
 
 /// The result of one [`Decoder::decode`] call.
@@ -248,6 +256,7 @@ impl Decoder {
                 first_unknown_at: None,
                 time_wraps: 0,
                 time_high_steps_back: 0,
+                time_low_wraps: 0,
             },
         }
     }

@@ -181,6 +181,18 @@ fn evt3_time_wraps_at_24_bits() {
 }
 
 #[test]
+fn evt3_time_low_wrap_moves_the_high_part_on() {
+    // TIME_HIGH 4095, TIME_LOW 4000, event; TIME_LOW 10 without a TIME_HIGH: the low counter
+    // wrapped, so TIME_HIGH is 0 of the next clock period; a later TIME_HIGH 0 changes nothing.
+    let bytes = words16(&[0x0001, 0x8FFF, 0x6FA0, 0x2001, 0x600A, 0x2002, 0x8000, 0x2003, 0x6014, 0x2004]);
+    let (got, dec) = decode_all(Encoding::Evt3, &bytes);
+    let t: Vec<u64> = got.iter().map(|e| e.t_us).collect();
+    assert_eq!(t, [0xFFFFA0, (1 << 24) + 10, (1 << 24) + 10, (1 << 24) + 20]);
+    let s = dec.stats();
+    assert_eq!((s.time_low_wraps, s.time_wraps, s.time_high_steps_back), (1, 1, 0));
+}
+
+#[test]
 fn evt3_vector_without_base_is_unsynced() {
     let bytes = words16(&[0x8000, 0x0001, 0x4FFF, 0x5003]);
     let (got, dec) = decode_all(Encoding::Evt3, &bytes);
@@ -317,7 +329,14 @@ fn reference(encoding: Encoding, bytes: &[u8]) -> Vec<Event> {
                         }
                         xb = xb.map(|x| (x + u32::from(width)).min(65535));
                     }
-                    6 => low = u64::from(p),
+                    6 => {
+                        if let Some(h) = high.filter(|_| u64::from(p) < low) {
+                            let h = (h + 1) & 0xFFF;
+                            wrap(h, 12, 24, &mut epoch);
+                            high = Some(h);
+                        }
+                        low = u64::from(p);
+                    }
                     8 => {
                         let h = u32::from(p);
                         if high != Some(h) {

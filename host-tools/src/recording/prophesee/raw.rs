@@ -182,6 +182,12 @@ impl EventSource for RawReader {
         if s.time_high_steps_back > 0 {
             v.push(format!("time stepped back {} times (TIME_HIGH words out of order)", s.time_high_steps_back));
         }
+        if s.time_low_wraps > 0 {
+            v.push(format!(
+                "{} TIME_HIGH steps inferred from TIME_LOW wrapping (the stream leaves those TIME_HIGH words out)",
+                s.time_low_wraps
+            ));
+        }
         if s.triggers + s.others > 0 {
             v.push(format!("skipped: {} trigger words, {} other non-CD words", s.triggers, s.others));
         }
