@@ -460,3 +460,96 @@ fn recruit<const C: usize>(
         }
     }
 }
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    /// Events on rings (two crescents each, moving) plus scattered noise.
+    fn scene(circles: &[(f32, f32, f32)], per_circle: usize, noise: usize, seed: u32) -> Vec<Event> {
+        let mut s = seed | 1;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut out = Vec::new();
+        for _ in 0..per_circle {
+            for &(cx, cy, r) in circles {
+                let t = rnd() * 4000.0;
+                // Crescents: angles near the motion axis (x), edge spread ±0.5 px.
+                let a = (rnd() - 0.5) * 2.2 + if rnd() < 0.5 { 0.0 } else { core::f32::consts::PI };
+                let rr = r + rnd() - 0.5;
+                let x = cx + 0.2e-3 * t + rr * libm::cosf(a);
+                let y = cy + rr * libm::sinf(a);
+                out.push(Event { t_us: t as u64, x: x.round() as u16, y: y.round() as u16, polarity: true });
+            }
+        }
+        for _ in 0..noise {
+            let t = rnd() * 4000.0;
+            out.push(Event { t_us: t as u64, x: (rnd() * 340.0) as u16, y: (rnd() * 255.0) as u16, polarity: false });
+        }
+        out.sort_by_key(|e| e.t_us);
+        out
+    }
+
+    #[test]
+    fn finds_every_ring_of_a_clean_scene() {
+        let circles =
+            [(60.0, 60.0, 7.0), (120.0, 60.0, 7.0), (180.0, 60.0, 7.5), (60.0, 150.0, 6.5), (150.0, 170.0, 9.0)];
+        let events = scene(&circles, 150, 200, 7);
+        let mut cfg = DetectConfig::new(SensorSize::DAVIS346);
+        cfg.window = WindowConfig { events: events.len(), step_us: 0 };
+        let mut det: Detector<1024, 32> = Detector::new(cfg);
+        let mut found = None;
+        for e in &events {
+            if let Some(d) = det.push(*e) {
+                found = Some(d.clone());
+            }
+        }
+        let d = found.expect("one window");
+        // The centres are given at the window's middle: the rings moved 0.2 px/ms.
+        let mid = (d.info.t_ref_us - d.info.t_first_us) as f32 * 1e-3;
+        for &(cx, cy, r) in &circles {
+            let best = d
+                .centres
+                .iter()
+                .map(|c| ((c.u - cx - 0.2 * mid).powi(2) + (c.v - cy).powi(2)).sqrt())
+                .fold(f32::INFINITY, f32::min);
+            assert!(best < 0.25, "ring at ({cx}, {cy}) r {r}: nearest centre {best} px away; {:?}", d.centres);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Any stream of events: no panic, windows as configured, finite centres.
+        #[test]
+        fn any_stream_gives_consistent_windows(
+            raw in prop::collection::vec((0u16..400, 0u16..300, 0u32..300, any::<bool>()), 0..3000),
+            per_window in 1usize..800,
+            eps in 0.0f32..0.1,
+            min_pts in 0u16..15,
+        ) {
+            let mut cfg = DetectConfig::new(SensorSize::DAVIS346);
+            cfg.window = WindowConfig { events: per_window, step_us: 2_000 };
+            cfg.cluster = ClusterConfig { eps, min_pts, eps_t: None };
+            let mut det: Detector<1024, 16> = Detector::new(cfg);
+            let mut t = 0u64;
+            for (x, y, dt, p) in raw {
+                t += u64::from(dt);
+                if let Some(d) = det.push(Event { t_us: t, x, y, polarity: p }) {
+                    prop_assert_eq!(usize::from(d.stats.events), per_window.min(1024));
+                    prop_assert!(d.info.t_first_us <= d.info.t_ref_us && d.info.t_ref_us <= d.info.t_last_us);
+                    prop_assert!(d.centres.len() <= 16);
+                    for c in &d.centres {
+                        prop_assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
+                    }
+                }
+            }
+        }
+    }
+}
