@@ -243,6 +243,26 @@ fn spans(events: &[WindowEvent], from: Row, to: Row, s: u16) -> impl Iterator<It
     })
 }
 
+/// Adds to the count of each event of row `from` the number of events of row `to` within `s`
+/// columns of it: the spatial case of [`spans`], as a tight loop over the two rows.
+fn count_spans(events: &[WindowEvent], counts: &mut [u16], from: Row, to: Row, s: u16) {
+    let (f0, f1) = (usize::from(from.start), usize::from(from.end));
+    let target = events.get(usize::from(to.start)..usize::from(to.end)).unwrap_or(&[]);
+    let (Some(source), Some(counts)) = (events.get(f0..f1), counts.get_mut(f0..f1)) else { return };
+    let (mut lo, mut hi) = (0, 0);
+    for (e, c) in source.iter().zip(counts.iter_mut()) {
+        let (first, last) = (e.x.saturating_sub(s), e.x.saturating_add(s));
+        while lo < target.len() && target[lo].x < first {
+            lo += 1;
+        }
+        hi = hi.max(lo);
+        while hi < target.len() && target[hi].x <= last {
+            hi += 1;
+        }
+        *c = c.saturating_add((hi - lo) as u16);
+    }
+}
+
 /// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
 /// inline: a label per event and a range per cluster, `2N + 4C` bytes (the events
 /// themselves are the caller's).
@@ -335,15 +355,16 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         while let Some((b, above)) = rows.next(events) {
             for a in above.iter().chain(core::iter::once(&b)) {
                 let s = span[usize::from(b.y - a.y)];
-                for (i, lo, hi) in spans(events, b, *a, s) {
-                    *work = work.wrapping_add(1);
-                    let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
-                    self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
-                }
-                if a.y != b.y {
-                    for (i, lo, hi) in spans(events, *a, b, s) {
-                        let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
-                        self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
+                let ways: &[(Row, Row)] = if a.y == b.y { &[(b, b)] } else { &[(b, *a), (*a, b)] };
+                for &(from, to) in ways {
+                    *work = work.wrapping_add(u32::from(from.end - from.start));
+                    if spatial {
+                        count_spans(events, &mut self.labels, from, to, s);
+                    } else {
+                        for (i, lo, hi) in spans(events, from, to, s) {
+                            let c = (lo..hi).filter(|&j| near_t(i, j)).count();
+                            self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
+                        }
                     }
                 }
             }
