@@ -345,7 +345,8 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
         let (x, y, t) = f.local(e);
         let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
         let q = dx * dx + dy * dy;
-        if !(q > 0.0) {
+        // NaN compares false: `q > 0` and finite below.
+        if q.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
             hist.add(r.abs());
             continue; // on the axis: no direction, no information about the centre
         }
