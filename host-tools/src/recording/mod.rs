@@ -4,9 +4,12 @@
 //! with the file and the line or offset where it is, never a panic. The format is chosen by
 //! content and extension ([`Format::detect`]).
 
+mod aedat4;
+mod flatbuf;
 mod h5;
 mod text;
 
+pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use h5::{write_ecalib_h5, H5Reader};
 pub use text::{write_text, TextReader};
 
@@ -20,21 +23,27 @@ pub enum Format {
     Text,
     /// HDF5 with a dataset `events_data` of N x 4 `[x, y, p, t_seconds]` (E-Calib's layout).
     EcalibH5,
+    /// iniVation DV / dv-processing AEDAT 4.0 (the event stream; frames, IMU, triggers skipped).
+    Aedat4,
 }
 
 impl Format {
-    /// Chooses the format of `path` by its first bytes (the HDF5 signature), falling back on
-    /// the extension.
+    /// Chooses the format of `path` by its first bytes (the HDF5 signature, AEDAT4's
+    /// `#!AER-DAT4.0`), falling back on the extension.
     pub fn detect(path: &Path) -> Result<Self, ReadError> {
         use std::io::Read;
-        let mut head = [0u8; 8];
-        let mut f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
-        let n = f.read(&mut head).map_err(|e| ReadError::io(path, e))?;
-        if n == 8 && head == *b"\x89HDF\r\n\x1a\n" {
+        let mut head = Vec::with_capacity(16);
+        let f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
+        f.take(16).read_to_end(&mut head).map_err(|e| ReadError::io(path, e))?;
+        if head.starts_with(b"\x89HDF\r\n\x1a\n") {
             return Ok(Format::EcalibH5);
+        }
+        if head.starts_with(aedat4::MAGIC) {
+            return Ok(Format::Aedat4);
         }
         match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
             Some("h5" | "hdf5") => Ok(Format::EcalibH5),
+            Some("aedat4") => Ok(Format::Aedat4),
             _ => Ok(Format::Text),
         }
     }
@@ -44,6 +53,7 @@ impl Format {
         match self {
             Format::Text => "text (t x y p)",
             Format::EcalibH5 => "HDF5 (E-Calib events_data)",
+            Format::Aedat4 => "AEDAT4 (iniVation DV)",
         }
     }
 }
@@ -55,6 +65,8 @@ pub enum Position {
     Line(u64),
     /// A row of a table (an event index), from 0.
     Row(u64),
+    /// A byte offset in a binary file, from 0 (the start of the record or packet at fault).
+    Byte(u64),
     /// Nowhere in particular (opening, metadata).
     File,
 }
@@ -85,12 +97,22 @@ impl fmt::Display for ReadError {
         match self.at {
             Position::Line(l) => write!(f, "{}:{}: {}", self.path, l, self.message),
             Position::Row(r) => write!(f, "{}: event {}: {}", self.path, r, self.message),
+            Position::Byte(b) => write!(f, "{}: byte {}: {}", self.path, b, self.message),
             Position::File => write!(f, "{}: {}", self.path, self.message),
         }
     }
 }
 
 impl std::error::Error for ReadError {}
+
+/// Choices a reader cannot make from the file alone; the defaults suit most files.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct OpenOptions {
+    /// The stream to read where a file holds several: a ROS bag topic, an AEDAT4 stream's
+    /// name or id. Default: the file's only event stream, else the conventional one
+    /// (`/dvs/events`, `events`).
+    pub topic: Option<String>,
+}
 
 /// An open recording: an iterator of events plus what the file says about itself.
 pub struct Recording {
@@ -102,6 +124,9 @@ pub struct Recording {
     pub len: Option<u64>,
     /// Bytes in the file, for progress.
     pub file_bytes: u64,
+    /// What the reader decided or noticed that the user should hear about (a guessed time
+    /// unit, a missing index); the CLI prints them.
+    pub notes: Vec<String>,
     events: Box<dyn EventSource>,
 }
 
@@ -114,20 +139,29 @@ pub(crate) trait EventSource {
 }
 
 impl Recording {
-    /// Opens `path`, choosing the reader by [`Format::detect`].
+    /// Opens `path` with the default [`OpenOptions`], choosing the reader by [`Format::detect`].
     pub fn open(path: &Path) -> Result<Self, ReadError> {
+        Self::open_with(path, &OpenOptions::default())
+    }
+
+    /// Opens `path`, choosing the reader by [`Format::detect`].
+    pub fn open_with(path: &Path, opts: &OpenOptions) -> Result<Self, ReadError> {
         let format = Format::detect(path)?;
         let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
+        let rec =
+            |sensor, len, notes, events: Box<dyn EventSource>| Self { format, sensor, len, file_bytes, notes, events };
         match format {
             Format::Text => {
                 let r = TextReader::open(path)?;
-                let sensor = r.sensor();
-                Ok(Self { format, sensor, len: None, file_bytes, events: Box::new(r) })
+                Ok(rec(r.sensor(), None, Vec::new(), Box::new(r)))
             }
             Format::EcalibH5 => {
                 let r = H5Reader::open(path)?;
-                let len = Some(r.len());
-                Ok(Self { format, sensor: None, len, file_bytes, events: Box::new(r) })
+                Ok(rec(None, Some(r.len()), Vec::new(), Box::new(r)))
+            }
+            Format::Aedat4 => {
+                let r = Aedat4Reader::open(path, opts.topic.as_deref())?;
+                Ok(rec(r.sensor(), r.len(), r.notes().to_vec(), Box::new(r)))
             }
         }
     }

@@ -1,0 +1,114 @@
+//! A real DAVIS346 recording, read by evcal and checked against what faery's own tests
+//! publish for it (`tests/assets.py` of faery's source distribution): the SHA3-224 digests of
+//! the t, x, y and polarity fields, the sensor size and the time range, and the event count
+//! (78,830) named in issue 5.
+//!
+//! The data are LGPL-3.0 and not committed: `bash scripts/fetch-faery.sh` puts them in
+//! `target/test-data/faery/`. Without them this test says so and passes, unless
+//! `EVCAL_REQUIRE_TEST_DATA=1` (set by `scripts/test.sh`) makes their absence a failure.
+
+use evcal_core::event::SensorSize;
+use evcal_host::recording::{Format, Recording};
+use sha3::{Digest, Sha3_224};
+use std::path::PathBuf;
+
+fn faery_tests_dir() -> Option<PathBuf> {
+    let dir = std::env::var_os("EVCAL_FAERY_DIR")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/test-data/faery/tests"));
+    if dir.join("assets.py").is_file() {
+        return Some(dir);
+    }
+    if std::env::var("EVCAL_REQUIRE_TEST_DATA").is_ok_and(|v| v == "1") {
+        panic!("{} has no faery test data: run bash scripts/fetch-faery.sh", dir.display());
+    }
+    eprintln!("SKIPPED: no faery test data in {} (bash scripts/fetch-faery.sh fetches it)", dir.display());
+    None
+}
+
+/// What assets.py says of one file: field digests, dimensions, time range (first, last + 1).
+struct Asset {
+    digests: Vec<(String, String)>,
+    dimensions: (u16, u16),
+    time_range_us: (u64, u64),
+}
+
+/// Reads the `File(path=dirname / "data" / NAME, ...)` entry of assets.py. A small scan
+/// rather than a Python parser: the entries are regular, and a mismatch fails loudly.
+fn asset(assets_py: &str, name: &str) -> Asset {
+    let start = assets_py.find(&format!("\"{name}\"")).unwrap_or_else(|| panic!("{name} not in assets.py"));
+    let block = &assets_py[start..];
+    let block = &block[..block.find("    File(").unwrap_or(block.len())];
+    let quoted_after = |key: &str, from: &str| -> Vec<String> {
+        let at = from.find(key).unwrap_or_else(|| panic!("no {key} for {name}")) + key.len();
+        from[at..].split('"').skip(1).step_by(2).take(2).map(str::to_string).collect()
+    };
+    let digest_block = &block[block.find("field_to_digest").unwrap()..block.find("dimensions").unwrap()];
+    let digests = digest_block
+        .lines()
+        .filter_map(|l| {
+            let parts: Vec<&str> = l.split('"').collect();
+            (parts.len() >= 4).then(|| (parts[1].to_string(), parts[3].to_string()))
+        })
+        .collect();
+    let dims = &block[block.find("dimensions=(").unwrap() + 12..];
+    let dims: Vec<u16> = dims[..dims.find(')').unwrap()].split(',').map(|v| v.trim().parse().unwrap()).collect();
+    let range = quoted_after("time_range=(", block);
+    Asset { digests, dimensions: (dims[0], dims[1]), time_range_us: (parse_time(&range[0]), parse_time(&range[1])) }
+}
+
+/// faery's `H:MM:SS.ffffff` to microseconds.
+fn parse_time(s: &str) -> u64 {
+    let p: Vec<&str> = s.split(':').collect();
+    let (sec, us) = p[2].split_once('.').unwrap();
+    (p[0].parse::<u64>().unwrap() * 3600 + p[1].parse::<u64>().unwrap() * 60 + sec.parse::<u64>().unwrap()) * 1_000_000
+        + us.parse::<u64>().unwrap()
+}
+
+#[test]
+fn davis346_aedat4_matches_faery() {
+    let Some(dir) = faery_tests_dir() else { return };
+    let assets_py = std::fs::read_to_string(dir.join("assets.py")).unwrap();
+    let want = asset(&assets_py, "davis346.aedat4");
+    let path = dir.join("data/davis346.aedat4");
+
+    assert_eq!(Format::detect(&path).unwrap(), Format::Aedat4);
+    let rec = Recording::open(&path).unwrap();
+    assert_eq!(rec.sensor, Some(SensorSize::new(want.dimensions.0, want.dimensions.1)));
+    assert_eq!(rec.len, Some(78_830), "the data table's count");
+    assert!(rec.notes.is_empty(), "{:?}", rec.notes);
+
+    let (mut ht, mut hx, mut hy, mut hp) = (Sha3_224::new(), Sha3_224::new(), Sha3_224::new(), Sha3_224::new());
+    let (mut n, mut first, mut last) = (0u64, None, 0u64);
+    for e in rec {
+        let e = e.unwrap();
+        ht.update(e.t_us.to_le_bytes());
+        hx.update(e.x.to_le_bytes());
+        hy.update(e.y.to_le_bytes());
+        hp.update([u8::from(e.polarity)]);
+        first.get_or_insert(e.t_us);
+        last = e.t_us;
+        n += 1;
+    }
+    assert_eq!(n, 78_830);
+    // faery's time range ends one microsecond after the last event.
+    assert_eq!((first.unwrap(), last + 1), want.time_range_us);
+    eprintln!(
+        "davis346.aedat4: {n} events, t {} .. {} µs, sensor {}x{}",
+        first.unwrap(),
+        last,
+        want.dimensions.0,
+        want.dimensions.1
+    );
+    for (field, h) in [("t", ht), ("x", hx), ("y", hy), ("on", hp)] {
+        let want_digest = &want.digests.iter().find(|(f, _)| f == field).unwrap().1;
+        let got: String = h.finalize().iter().map(|b| format!("{b:02x}")).collect();
+        assert_eq!(&got, want_digest, "SHA3-224 of field {field}");
+    }
+}
+
+#[test]
+fn time_strings_parse() {
+    assert_eq!(parse_time("441434:12:27.368868"), 1_589_163_147_368_868);
+    assert_eq!(parse_time("00:00:00.999001"), 999_001);
+}
