@@ -15,6 +15,7 @@
 //! it read every event the file holds.
 
 use super::{
+    codec::{self, Codec},
     flatbuf::{Buf, Table},
     EventSource, Position, ReadError,
 };
@@ -362,23 +363,12 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 
 /// Decompresses one packet (or the data table) into `out`.
 fn decompress(c: Compression, raw: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
-    out.clear();
-    let r = match c {
-        Compression::None => {
-            out.extend_from_slice(raw);
-            return Ok(());
-        }
-        Compression::Lz4 => lz4_flex::frame::FrameDecoder::new(raw).take(MAX_DECOMPRESSED + 1).read_to_end(out),
-        Compression::Zstd => match ruzstd::decoding::StreamingDecoder::new(raw) {
-            Ok(d) => d.take(MAX_DECOMPRESSED + 1).read_to_end(out),
-            Err(e) => return Err(format!("not a Zstandard frame: {e}")),
-        },
+    let codec = match c {
+        Compression::None => Codec::None,
+        Compression::Lz4 => Codec::Lz4,
+        Compression::Zstd => Codec::Zstd,
     };
-    match r {
-        Ok(n) if n as u64 > MAX_DECOMPRESSED => Err(format!("decompresses to more than {MAX_DECOMPRESSED} bytes")),
-        Ok(_) => Ok(()),
-        Err(e) => Err(format!("cannot decompress ({c:?}): {e}")),
-    }
+    codec::decompress(codec, raw, MAX_DECOMPRESSED, out)
 }
 
 /// Checks a decompressed `EVTS` packet; where its events start and how many there are.
@@ -524,8 +514,11 @@ mod test {
         assert!(e.contains("holds no events") && e.contains("0 'events' (EVTS)"), "{e}");
         let e = choose_stream(&s, Some("left")).unwrap_err();
         assert!(e.contains("no stream 'left'") && e.contains("2 'right' (EVTS)"), "{e}");
-        let e = choose_stream(&s[1..], None).unwrap_err();
-        assert!(e.contains("several event streams"), "{e}");
+        assert_eq!(choose_stream(&s[1..], None).unwrap().id, 2, "the only event stream, whatever its name");
+        let mut two = s.clone();
+        two[0].name = "left".into();
+        let e = choose_stream(&two, None).unwrap_err();
+        assert!(e.contains("several event streams") && e.contains("--topic"), "{e}");
         assert!(choose_stream(&s[1..2], None).unwrap_err().contains("no event stream"));
         assert!(parse_info("<dv><node name='x'/></dv>").unwrap_err().contains("outInfo"));
         assert!(parse_info("<dv").unwrap_err().contains("XML"));

@@ -5,12 +5,17 @@
 //! content and extension ([`Format::detect`]).
 
 mod aedat4;
+mod bag;
+mod codec;
 mod flatbuf;
 mod h5;
+mod h5cols;
 mod text;
 
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
+pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use h5::{write_ecalib_h5, H5Reader};
+pub use h5cols::{H5ColumnsReader, TimeUnit};
 pub use text::{write_text, TextReader};
 
 use evcal_core::event::{Event, SensorSize};
@@ -25,25 +30,36 @@ pub enum Format {
     EcalibH5,
     /// iniVation DV / dv-processing AEDAT 4.0 (the event stream; frames, IMU, triggers skipped).
     Aedat4,
+    /// ROS1 bag (format 2.0) with `dvs_msgs/EventArray` messages.
+    RosBag,
+    /// HDF5 with a group `events` of datasets `x`, `y`, `t`, `p` (DSEC and others).
+    EventsGroupH5,
+    /// HDF5 with datasets `x`, `y`, `p`, `t` at the root (e2calib).
+    RootColumnsH5,
 }
 
 impl Format {
     /// Chooses the format of `path` by its first bytes (the HDF5 signature, AEDAT4's
-    /// `#!AER-DAT4.0`), falling back on the extension.
+    /// `#!AER-DAT4.0`, `#ROSBAG V`), falling back on the extension.
     pub fn detect(path: &Path) -> Result<Self, ReadError> {
         use std::io::Read;
         let mut head = Vec::with_capacity(16);
         let f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
         f.take(16).read_to_end(&mut head).map_err(|e| ReadError::io(path, e))?;
         if head.starts_with(b"\x89HDF\r\n\x1a\n") {
-            return Ok(Format::EcalibH5);
+            // Which HDF5 layout, by the datasets; E-Calib's reader lists them if none fits.
+            return Ok(h5cols::layout(path).unwrap_or(Format::EcalibH5));
         }
         if head.starts_with(aedat4::MAGIC) {
             return Ok(Format::Aedat4);
         }
+        if head.starts_with(b"#ROSBAG V") {
+            return Ok(Format::RosBag);
+        }
         match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
             Some("h5" | "hdf5") => Ok(Format::EcalibH5),
             Some("aedat4") => Ok(Format::Aedat4),
+            Some("bag") => Ok(Format::RosBag),
             _ => Ok(Format::Text),
         }
     }
@@ -54,6 +70,9 @@ impl Format {
             Format::Text => "text (t x y p)",
             Format::EcalibH5 => "HDF5 (E-Calib events_data)",
             Format::Aedat4 => "AEDAT4 (iniVation DV)",
+            Format::RosBag => "ROS1 bag (dvs_msgs/EventArray)",
+            Format::EventsGroupH5 => "HDF5 (events/x,y,t,p)",
+            Format::RootColumnsH5 => "HDF5 (x,y,p,t at the root: e2calib)",
         }
     }
 }
@@ -112,6 +131,8 @@ pub struct OpenOptions {
     /// name or id. Default: the file's only event stream, else the conventional one
     /// (`/dvs/events`, `events`).
     pub topic: Option<String>,
+    /// The unit of integer timestamps in HDF5 column layouts, instead of detecting it.
+    pub time_unit: Option<TimeUnit>,
 }
 
 /// An open recording: an iterator of events plus what the file says about itself.
@@ -162,6 +183,14 @@ impl Recording {
             Format::Aedat4 => {
                 let r = Aedat4Reader::open(path, opts.topic.as_deref())?;
                 Ok(rec(r.sensor(), r.len(), r.notes().to_vec(), Box::new(r)))
+            }
+            Format::RosBag => {
+                let r = BagReader::open(path, opts.topic.as_deref())?;
+                Ok(rec(r.sensor(), None, r.notes().to_vec(), Box::new(r)))
+            }
+            Format::EventsGroupH5 | Format::RootColumnsH5 => {
+                let r = H5ColumnsReader::open(path, format, opts.time_unit)?;
+                Ok(rec(r.sensor(), Some(r.len()), r.notes().to_vec(), Box::new(r)))
             }
         }
     }
