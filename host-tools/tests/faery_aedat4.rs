@@ -3,27 +3,46 @@
 //! the t, x, y and polarity fields, the sensor size and the time range, and the event count
 //! (78,830) named in issue 5.
 //!
-//! The data are LGPL-3.0 and not committed: `bash scripts/fetch-faery.sh` puts them in
-//! `target/test-data/faery/`. Without them this test says so and passes, unless
-//! `EVCAL_REQUIRE_TEST_DATA=1` (set by `scripts/test.sh`) makes their absence a failure.
+//! The data are LGPL-3.0 and not committed: `bash scripts/fetch-faery.sh` fetches them into
+//! `target/test-data/` (this test runs it when they are missing; `EVCAL_FAERY_DATA=DIR` names
+//! another copy of faery's `tests/data`). If they cannot be had, the test says so loudly and
+//! passes, unless `EVCAL_REQUIRE_TEST_DATA=1` (set by `scripts/test.sh`) makes that a failure.
 
 use evcal_core::event::SensorSize;
 use evcal_host::recording::{Format, Recording};
 use sha3::{Digest, Sha3_224};
 use std::path::PathBuf;
 
-fn faery_tests_dir() -> Option<PathBuf> {
-    let dir = std::env::var_os("EVCAL_FAERY_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/test-data/faery/tests"));
-    if dir.join("assets.py").is_file() {
-        return Some(dir);
+/// faery's `tests/data` directory (assets.py is beside it).
+fn faery_data() -> Option<PathBuf> {
+    if let Some(d) = std::env::var_os("EVCAL_FAERY_DATA") {
+        return Some(PathBuf::from(d));
     }
-    if std::env::var("EVCAL_REQUIRE_TEST_DATA").is_ok_and(|v| v == "1") {
-        panic!("{} has no faery test data: run bash scripts/fetch-faery.sh", dir.display());
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..");
+    let fetched = std::process::Command::new("bash")
+        .arg(root.join("scripts/fetch-faery.sh"))
+        .current_dir(&root)
+        .output()
+        .map_err(|e| e.to_string())
+        .and_then(|o| {
+            if o.status.success() {
+                Ok(PathBuf::from(String::from_utf8_lossy(&o.stdout).trim()))
+            } else {
+                Err(String::from_utf8_lossy(&o.stderr).into_owned())
+            }
+        });
+    match fetched {
+        Ok(d) => Some(d),
+        Err(why) if std::env::var("EVCAL_REQUIRE_TEST_DATA").is_ok_and(|v| v == "1") => {
+            panic!("faery's recordings could not be fetched: {why}")
+        }
+        Err(why) => {
+            eprintln!(
+                "\n!!!!!!!! SKIPPED: faery's recordings could not be fetched ({why}); run scripts/fetch-faery.sh\n"
+            );
+            None
+        }
     }
-    eprintln!("SKIPPED: no faery test data in {} (bash scripts/fetch-faery.sh fetches it)", dir.display());
-    None
 }
 
 /// What assets.py says of one file: field digests, dimensions, time range (first, last + 1).
@@ -67,10 +86,10 @@ fn parse_time(s: &str) -> u64 {
 
 #[test]
 fn davis346_aedat4_matches_faery() {
-    let Some(dir) = faery_tests_dir() else { return };
-    let assets_py = std::fs::read_to_string(dir.join("assets.py")).unwrap();
+    let Some(data) = faery_data() else { return };
+    let assets_py = std::fs::read_to_string(data.join("../assets.py")).unwrap();
     let want = asset(&assets_py, "davis346.aedat4");
-    let path = dir.join("data/davis346.aedat4");
+    let path = data.join("davis346.aedat4");
 
     assert_eq!(Format::detect(&path).unwrap(), Format::Aedat4);
     let rec = Recording::open(&path).unwrap();
