@@ -13,6 +13,14 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 
+# Independent writers of the recording formats (scripts/make-format-fixtures.py): iniVation's
+# dv-processing (AEDAT4), rosbags (ROS1 bags), h5py (HDF5). pip also fetches faery's test
+# recordings (scripts/fetch-faery.sh).
+if ! python3 -c "import dv_processing, rosbags, h5py, numpy" >/dev/null 2>&1; then
+  echo "setup: installing Python packages: dv-processing rosbags h5py numpy"
+  python3 -m pip install --quiet --disable-pip-version-check dv-processing rosbags h5py numpy
+fi
+
 # The core must build for the Cortex-M4F.
 if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
   echo "setup: adding rustup target thumbv7em-none-eabihf"
