@@ -7,9 +7,9 @@ other people use to write them (not evcal's own writers):
 - ROS1 bags by rosbags, dvs_msgs/EventArray on /dvs/events (the message type registered
   from its .msg definition), a sensor_msgs/Imu topic and a second event topic, one bag per
   chunk compression (none, bz2, lz4);
-- HDF5 by h5py: E-Calib's events_data, the events/{x,y,t,p} group (DSEC-like, with t in
-  µs from t_offset; and with t in ns, absolute), and e2calib's root x, y, p, t (t in ns,
-  LZF-compressed, as e2calib's H5Writer writes it);
+- HDF5 by h5py: E-Calib's events_data, the events/{x,y,t,p} group (DSEC's, with t in µs
+  from t_offset, Blosc-zstd compressed by hdf5plugin; and with t in ns, absolute, gzip), and
+  e2calib's root x, y, p, t (t in ns, LZF-compressed, as e2calib's H5Writer writes it);
 - the plain text `t x y p` list itself (events.txt), the reference the tests compare with.
 
 evcal's tests (host-tools/tests/formats.rs) read every file and require the same events as
@@ -160,28 +160,30 @@ def write_h5(out, t, x, y, p):
     with h5py.File(out / "ecalib.h5", "w") as f:
         f["events_data"] = np.stack([x, y, p, t / 1e6], axis=1).astype(np.float64)
 
-    # DSEC-like: events/{p,t,x,y}, t in µs (uint32) from t_offset; ms_to_idx; gzip chunks.
+    # DSEC: events/{p,t,x,y}, t in µs (uint32) from t_offset; ms_to_idx; Blosc-zstd chunks
+    # (hdf5plugin), as DSEC's files are compressed.
+    import hdf5plugin
+
+    blosc = hdf5plugin.Blosc(cname="zstd", clevel=5, shuffle=hdf5plugin.Blosc.SHUFFLE)
     t_offset = int(t[0]) - 1234
     with h5py.File(out / "dsec.h5", "w") as f:
         g = f.create_group("events")
-        g.create_dataset("p", data=p, compression="gzip", chunks=(512,))
-        g.create_dataset("t", data=(t - t_offset).astype(np.uint32), compression="gzip", chunks=(512,))
-        g.create_dataset("x", data=x, compression="gzip", chunks=(512,))
-        g.create_dataset("y", data=y, compression="gzip", chunks=(512,))
+        g.create_dataset("p", data=p, chunks=(512,), **blosc)
+        g.create_dataset("t", data=(t - t_offset).astype(np.uint32), chunks=(512,), **blosc)
+        g.create_dataset("x", data=x, chunks=(512,), **blosc)
+        g.create_dataset("y", data=y, chunks=(512,), **blosc)
         f.create_dataset("t_offset", data=np.int64(t_offset))
         ms = np.searchsorted(t - t_offset, np.arange(0, (t[-1] - t_offset) // 1000 + 1) * 1000)
         f.create_dataset("ms_to_idx", data=ms.astype(np.uint64))
 
     # events/{x,y,t,p} with t in ns (absolute, int64), polarity as -1/1 int8, sensor size
-    # as attributes of the group.
+    # as attributes of the group, gzip (HDF5's own deflate).
     with h5py.File(out / "events_ns.h5", "w") as f:
         g = f.create_group("events")
         g.attrs["width"] = WIDTH
         g.attrs["height"] = HEIGHT
-        g["x"] = x
-        g["y"] = y
-        g["t"] = t * 1000
-        g["p"] = (p.astype(np.int8) * 2 - 1)
+        for name, v in [("x", x), ("y", y), ("t", t * 1000), ("p", p.astype(np.int8) * 2 - 1)]:
+            g.create_dataset(name, data=v, compression="gzip", chunks=(700,))
 
     # e2calib's H5Writer: root x, y (u2), p (u1), t (i8, ns), LZF, 2**16-row chunks, resizable.
     with h5py.File(out / "e2calib.h5", "w") as f:

@@ -14,11 +14,11 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
 fi
 
 # Independent writers of the recording formats (scripts/make-format-fixtures.py): iniVation's
-# dv-processing (AEDAT4), rosbags (ROS1 bags), h5py (HDF5). pip also fetches faery's test
-# recordings (scripts/fetch-faery.sh).
-if ! python3 -c "import dv_processing, rosbags, h5py, numpy" >/dev/null 2>&1; then
-  echo "setup: installing Python packages: dv-processing rosbags h5py numpy"
-  python3 -m pip install --quiet --disable-pip-version-check dv-processing rosbags h5py numpy
+# dv-processing (AEDAT4), rosbags (ROS1 bags), h5py and hdf5plugin (HDF5, Blosc as DSEC
+# uses it). pip also fetches faery's test recordings (scripts/fetch-faery.sh).
+if ! python3 -c "import dv_processing, rosbags, h5py, hdf5plugin, numpy" >/dev/null 2>&1; then
+  echo "setup: installing Python packages: dv-processing rosbags h5py hdf5plugin numpy"
+  python3 -m pip install --quiet --disable-pip-version-check dv-processing rosbags h5py hdf5plugin numpy
 fi
 
 # The core must build for the Cortex-M4F.
