@@ -185,6 +185,13 @@ def write_h5(out, t, x, y, p):
         for name, v in [("x", x), ("y", y), ("t", t * 1000), ("p", p.astype(np.int8) * 2 - 1)]:
             g.create_dataset(name, data=v, compression="gzip", chunks=(700,))
 
+    # hdf5plugin's Zstandard filter (32015), which evcal does not build in: the error must
+    # name it and the way to load it (HDF5_PLUGIN_PATH).
+    with h5py.File(out / "zstd_filter.h5", "w") as f:
+        g = f.create_group("events")
+        for name, v in [("x", x[:10]), ("y", y[:10]), ("t", t[:10]), ("p", p[:10])]:
+            g.create_dataset(name, data=v, **hdf5plugin.Zstd())
+
     # e2calib's H5Writer: root x, y (u2), p (u1), t (i8, ns), LZF, 2**16-row chunks, resizable.
     with h5py.File(out / "e2calib.h5", "w") as f:
         shape, maxshape = (2**16,), (None,)

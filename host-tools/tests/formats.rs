@@ -84,6 +84,24 @@ fn time_unit_guesses_are_reported() {
 }
 
 #[test]
+fn missing_hdf5_filter_is_named() {
+    let p = dir().join("zstd_filter.h5");
+    // evcal has no Zstandard HDF5 filter built in (unless HDF5_PLUGIN_PATH gives one)
+    if std::env::var_os("HDF5_PLUGIN_PATH").is_some() {
+        return;
+    }
+    let e = match Recording::open(&p) {
+        Err(e) => e,
+        Ok(rec) => rec.filter_map(Result::err).next().expect("an error"),
+    };
+    let msg = e.to_string();
+    assert!(
+        msg.contains("zstd_filter.h5") && msg.contains("filter 32015 (Zstandard)") && msg.contains("HDF5_PLUGIN_PATH"),
+        "{msg}"
+    );
+}
+
+#[test]
 fn bag_topics() {
     let path = dir().join("ros_lz4.bag");
     // the second event topic holds the first 100 events

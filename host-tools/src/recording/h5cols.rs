@@ -180,7 +180,8 @@ impl H5ColumnsReader {
                 } else if t_offset.is_some() {
                     TimeUnit::Microseconds
                 } else {
-                    let (u, why) = guess_unit(&t, rows).map_err(|m| err(format!("cannot read '{prefix}t': {m}")))?;
+                    let (u, why) = guess_unit(&t, rows)
+                        .map_err(|m| err(format!("cannot read '{prefix}t': {m}{}", filter_hint(&t))))?;
                     notes.push(format!(
                         "{}: '{prefix}t' taken as {} ({why}); set --time-unit to override",
                         path.display(),
@@ -236,25 +237,25 @@ impl H5ColumnsReader {
     fn fill(&mut self) -> Result<(), ReadError> {
         let end = (self.next_row + CHUNK_ROWS).min(self.rows);
         let r = self.next_row..end;
-        let e = |n: &str, e: hdf5::Error| {
-            ReadError::new(&self.path, Position::Row(r.start as u64), format!("cannot read {n}: {e}"))
+        let e = |d: &hdf5::Dataset, n: &str, e: hdf5::Error| {
+            let m = format!("cannot read {n}: {e}{}", filter_hint(d));
+            ReadError::new(&self.path, Position::Row(r.start as u64), m)
         };
-        let ints =
-            |d: &hdf5::Dataset, n: &str| d.read_slice_1d::<i64, _>(r.clone()).map(|a| a.to_vec()).map_err(|x| e(n, x));
+        let ints = |d: &hdf5::Dataset, n: &str| {
+            d.read_slice_1d::<i64, _>(r.clone()).map(|a| a.to_vec()).map_err(|x| e(d, n, x))
+        };
         self.buf.x = ints(&self.x, "x")?;
         self.buf.y = ints(&self.y, "y")?;
         self.buf.p = if self.p_bool {
-            self.p
-                .read_slice_1d::<bool, _>(r.clone())
-                .map(|a| a.iter().map(|&b| i64::from(b)).collect())
-                .map_err(|x| e("p", x))?
+            let a = self.p.read_slice_1d::<bool, _>(r.clone()).map_err(|x| e(&self.p, "p", x))?;
+            a.iter().map(|&b| i64::from(b)).collect()
         } else {
             ints(&self.p, "p")?
         };
         match self.time {
             TimeColumn::Int(_) => self.buf.t = ints(&self.t, "t")?,
             TimeColumn::FloatSeconds => {
-                self.buf.tf = self.t.read_slice_1d::<f64, _>(r.clone()).map(|a| a.to_vec()).map_err(|x| e("t", x))?
+                self.buf.tf = self.t.read_slice_1d::<f64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
             }
         }
         self.at = 0;
@@ -316,6 +317,41 @@ impl EventSource for H5ColumnsReader {
     fn progress_bytes(&self) -> u64 {
         // About 15 bytes a row (u16 x, y, u8 p, i64 t) against the file size.
         (self.next_row - self.buf.x.len() + self.at) as u64 * 15
+    }
+}
+
+/// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
+/// message then only names its plugin directory).
+fn filter_hint(d: &hdf5::Dataset) -> String {
+    let missing: Vec<String> = d
+        .filters()
+        .iter()
+        .filter_map(|f| match f {
+            hdf5::filters::Filter::User(id, _) => Some(format!("{id}{}", filter_name(*id))),
+            _ => None,
+        })
+        .collect();
+    if missing.is_empty() {
+        return String::new();
+    }
+    format!(
+        " (its data are compressed with HDF5 filter {}, which evcal does not build in; it builds in gzip, LZF and \
+         Blosc. Point HDF5_PLUGIN_PATH at a directory holding the filter's plugin, e.g. that of Python's \
+         hdf5plugin: python3 -c 'import hdf5plugin; print(hdf5plugin.PLUGIN_PATH)')",
+        missing.join(", ")
+    )
+}
+
+/// Names of registered HDF5 filters met in event files.
+fn filter_name(id: i32) -> &'static str {
+    match id {
+        307 => " (bzip2)",
+        32004 => " (LZ4)",
+        32008 => " (bitshuffle)",
+        32015 => " (Zstandard)",
+        32026 => " (Blosc2)",
+        0x8ecf => " (Prophesee ECF)",
+        _ => "",
     }
 }
 
