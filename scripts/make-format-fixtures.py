@@ -17,7 +17,8 @@ events.txt. The committed fixtures in host-tools/tests/fixtures/formats/ were ma
 this script; scripts/test.sh runs it again into target/ with the writers installed by
 scripts/setup.sh, so a change in those writers shows up in CI.
 
-Usage: make-format-fixtures.py OUT_DIR
+Usage: make-format-fixtures.py OUT_DIR [EVENTS]
+(EVENTS, default 2000: larger lists for the read-throughput benchmark, benches/formats.rs)
 """
 
 import sys
@@ -53,7 +54,8 @@ def write_text(out, t, x, y, p):
 def write_aedat4(out, t, x, y, p):
     import dv_processing as dv
 
-    batches = np.array_split(np.arange(N), 8)
+    # packets of a few thousand events, as DV writes them (8 for the small fixtures)
+    batches = np.array_split(np.arange(N), max(8, N // 2500))
     for name, comp in [
         ("none", dv.CompressionType.NONE),
         ("lz4", dv.CompressionType.LZ4),
@@ -81,7 +83,7 @@ def write_aedat4(out, t, x, y, p):
             w.writeImu(dv.IMU(ts, 25.0, 0.1, 0.2, 9.8, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
             w.writeTrigger(dv.Trigger(ts, dv.TriggerType.EXTERNAL_SIGNAL_RISING_EDGE))
             if with_frames and k % 4 == 0:
-                w.writeFrame(dv.Frame(ts, np.full((HEIGHT, WIDTH), k, dtype=np.uint8)))
+                w.writeFrame(dv.Frame(ts, np.full((HEIGHT, WIDTH), k % 256, dtype=np.uint8)))
         del w  # closing writes the data table
 
 
@@ -122,7 +124,7 @@ def write_bags(out, t, x, y, p):
         hdr = Header(seq=seq, stamp=stamp(int(t[idx[0]])), frame_id="dvs")
         return EventArray(header=hdr, height=HEIGHT, width=WIDTH, events=evs)
 
-    batches = [b.tolist() for b in np.array_split(np.arange(N), 10)]
+    batches = [b.tolist() for b in np.array_split(np.arange(N), max(10, N // 5000))]
     for name, comp in [("none", None), ("bz2", Writer.CompressionFormat.BZ2), ("lz4", Writer.CompressionFormat.LZ4)]:
         path = out / f"ros_{name}.bag"
         path.unlink(missing_ok=True)
@@ -168,10 +170,10 @@ def write_h5(out, t, x, y, p):
     t_offset = int(t[0]) - 1234
     with h5py.File(out / "dsec.h5", "w") as f:
         g = f.create_group("events")
-        g.create_dataset("p", data=p, chunks=(512,), **blosc)
-        g.create_dataset("t", data=(t - t_offset).astype(np.uint32), chunks=(512,), **blosc)
-        g.create_dataset("x", data=x, chunks=(512,), **blosc)
-        g.create_dataset("y", data=y, chunks=(512,), **blosc)
+        g.create_dataset("p", data=p, chunks=(max(512, N // 32),), **blosc)
+        g.create_dataset("t", data=(t - t_offset).astype(np.uint32), chunks=(max(512, N // 32),), **blosc)
+        g.create_dataset("x", data=x, chunks=(max(512, N // 32),), **blosc)
+        g.create_dataset("y", data=y, chunks=(max(512, N // 32),), **blosc)
         f.create_dataset("t_offset", data=np.int64(t_offset))
         ms = np.searchsorted(t - t_offset, np.arange(0, (t[-1] - t_offset) // 1000 + 1) * 1000)
         f.create_dataset("ms_to_idx", data=ms.astype(np.uint64))
@@ -183,7 +185,7 @@ def write_h5(out, t, x, y, p):
         g.attrs["width"] = WIDTH
         g.attrs["height"] = HEIGHT
         for name, v in [("x", x), ("y", y), ("t", t * 1000), ("p", p.astype(np.int8) * 2 - 1)]:
-            g.create_dataset(name, data=v, compression="gzip", chunks=(700,))
+            g.create_dataset(name, data=v, compression="gzip", chunks=(max(700, N // 32),))
 
     # hdf5plugin's Zstandard filter (32015), which evcal does not build in: the error must
     # name it and the way to load it (HDF5_PLUGIN_PATH).
@@ -203,8 +205,11 @@ def write_h5(out, t, x, y, p):
 
 
 def main():
-    if len(sys.argv) != 2:
+    global N
+    if len(sys.argv) not in (2, 3):
         sys.exit(__doc__)
+    if len(sys.argv) == 3:
+        N = int(sys.argv[2])
     out = Path(sys.argv[1])
     out.mkdir(parents=True, exist_ok=True)
     t, x, y, p = event_list()

@@ -35,9 +35,9 @@ pub(crate) fn decompress(codec: Codec, raw: &[u8], limit: u64, out: &mut Vec<u8>
             }
             lz4_flex::frame::FrameDecoder::new(raw).take(limit + 1).read_to_end(out)
         }
-        Codec::Zstd => match ruzstd::decoding::StreamingDecoder::new(raw) {
+        Codec::Zstd => match zstd::stream::read::Decoder::with_buffer(raw) {
             Ok(d) => d.take(limit + 1).read_to_end(out),
-            Err(e) => return Err(format!("not a Zstandard frame: {e}")),
+            Err(e) => return Err(format!("cannot start Zstandard: {e}")),
         },
         Codec::Bz2 => bzip2::read::MultiBzDecoder::new(raw).take(limit + 1).read_to_end(out),
     };
@@ -103,6 +103,12 @@ mod test {
         assert_eq!(out, data);
         assert!(decompress(Codec::Bz2, &bz[..bz.len() - 1], 1 << 20, &mut out).is_err());
 
+        let zs = zstd::encode_all(&data[..], 3).unwrap();
+        decompress(Codec::Zstd, &zs, 1 << 20, &mut out).unwrap();
+        assert_eq!(out, data);
+        for cut in [1, 4, zs.len() / 2] {
+            assert!(decompress(Codec::Zstd, &zs[..zs.len() - cut], 1 << 20, &mut out).is_err(), "cut {cut}");
+        }
         assert!(decompress(Codec::Zstd, b"not zstd", 1 << 20, &mut out).is_err());
         assert!(decompress(Codec::None, &data, 10, &mut out).is_err());
     }
