@@ -33,6 +33,9 @@ pub const MAGIC: &[u8; 14] = b"#!AER-DAT4.0\r\n";
 /// milliseconds of events), low enough that a corrupt size cannot exhaust memory.
 const MAX_DECOMPRESSED: u64 = 512 << 20;
 
+/// Largest IOHeader accepted (its info node lists the streams: a few kB).
+const MAX_HEADER: u64 = 16 << 20;
+
 /// Bytes of one event in an `EVTS` packet.
 const EVENT_BYTES: usize = 16;
 
@@ -117,6 +120,9 @@ impl Aedat4Reader {
         }
         let header_len = u64::from(u32::from_le_bytes([magic[14], magic[15], magic[16], magic[17]]));
         let header_start = 18u64;
+        if header_len > MAX_HEADER {
+            return Err(at(14, format!("corrupt header: an IOHeader of {header_len} bytes (DV writes a few kB)")));
+        }
         if header_start + header_len > file_len {
             return Err(at(
                 header_start,
@@ -258,6 +264,9 @@ impl Aedat4Reader {
                 return Err(self.err(at, format!("corrupt packet header: negative size {size}")));
             }
             let size = size as u64;
+            if size > MAX_DECOMPRESSED {
+                return Err(self.err(at, format!("corrupt packet header: a packet of {size} bytes")));
+            }
             if size > self.end - at - 8 {
                 let what =
                     if self.end == self.file_len { "the file" } else { "the packet area (up to the data table)" };

@@ -296,8 +296,13 @@ impl BagReader {
             Ok(false) => {
                 r.done = true;
                 if r.chosen.is_none() {
+                    // Unindexed, and no message of the topic: fine if the topic exists (no
+                    // events), an error listing the topics otherwise.
                     let topics = r.topics();
-                    return Err(ReadError::new(path, Position::File, no_topic_message(&topics, r.wanted.as_deref())));
+                    r.chosen = Some(
+                        choose_topic(&topics, r.wanted.as_deref())
+                            .map_err(|m| ReadError::new(path, Position::File, m))?,
+                    );
                 }
             }
             Err(e) => return Err(e),
