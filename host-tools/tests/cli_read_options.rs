@@ -44,3 +44,31 @@ fn time_unit_and_notes() {
     let (_, help, _) = evcal(&["detect", "--help"]);
     assert!(help.contains("--topic <NAME>") && help.contains("--time-unit <UNIT>"), "{help}");
 }
+
+/// The same events in every format give the same detections, byte for byte.
+#[test]
+fn every_format_detects_the_same() {
+    let run = |name: &str| {
+        let (ok, out, err) = evcal(&[
+            "detect",
+            &fixture(name),
+            "--quiet",
+            "--events-per-window",
+            "200",
+            "--step-ms",
+            "5",
+            "--min-pts",
+            "3",
+        ]);
+        assert!(ok, "{name}: {err}");
+        out
+    };
+    let want = run("events.txt");
+    // random events: no circles, but every window's time and noise count must agree
+    assert!(want.lines().count() >= 5, "{want}");
+    for name in
+        ["dv_lz4.aedat4", "dv_zstd_high.aedat4", "ros_bz2.bag", "ecalib.h5", "dsec.h5", "events_ns.h5", "e2calib.h5"]
+    {
+        assert_eq!(run(name), want, "{name}");
+    }
+}
