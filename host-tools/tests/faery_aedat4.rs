@@ -126,6 +126,16 @@ fn davis346_aedat4_matches_faery() {
     }
 }
 
+/// faery's frame-only AEDAT4 files: no event stream, said with the streams the file has.
+#[test]
+fn frame_only_aedat4_is_a_clear_error() {
+    let Some(data) = faery_data() else { return };
+    for name in ["test_data_gray16.aedat4", "test_data_unknown_then_gray16.aedat4"] {
+        let e = Recording::open(&data.join(name)).err().unwrap().to_string();
+        assert!(e.contains(name) && e.contains("no event stream") && e.contains("(FRME)"), "{e}");
+    }
+}
+
 #[test]
 fn time_strings_parse() {
     assert_eq!(parse_time("441434:12:27.368868"), 1_589_163_147_368_868);
