@@ -95,7 +95,7 @@ fn davis346_aedat4_matches_faery() {
     let rec = Recording::open(&path).unwrap();
     assert_eq!(rec.sensor, Some(SensorSize::new(want.dimensions.0, want.dimensions.1)));
     assert_eq!(rec.len, Some(78_830), "the data table's count");
-    assert!(rec.notes.is_empty(), "{:?}", rec.notes);
+    assert!(rec.notes().is_empty(), "{:?}", rec.notes());
 
     let (mut ht, mut hx, mut hy, mut hp) = (Sha3_224::new(), Sha3_224::new(), Sha3_224::new(), Sha3_224::new());
     let (mut n, mut first, mut last) = (0u64, None, 0u64);

@@ -54,7 +54,7 @@ fn every_format_gives_the_reference_events() {
         assert_eq!(rec.format, format, "{name}");
         assert_eq!(rec.sensor, sensor, "{name}");
         assert_eq!(rec.len, counted.then_some(2000), "{name}");
-        for n in &rec.notes {
+        for n in &rec.notes() {
             eprintln!("note: {n}");
         }
         let got = read_all(rec);
@@ -70,15 +70,15 @@ fn time_unit_guesses_are_reported() {
     // ns in the e2calib and events_ns files: guessed from the magnitude, and said so
     for name in ["e2calib.h5", "events_ns.h5"] {
         let rec = Recording::open(&dir().join(name)).unwrap();
-        assert_eq!(rec.notes.len(), 1, "{name}: {:?}", rec.notes);
-        assert!(rec.notes[0].contains("taken as ns") && rec.notes[0].contains("--time-unit"), "{}", rec.notes[0]);
+        assert_eq!(rec.notes().len(), 1, "{name}: {:?}", rec.notes());
+        assert!(rec.notes()[0].contains("taken as ns") && rec.notes()[0].contains("--time-unit"), "{}", rec.notes()[0]);
     }
     // DSEC's t_offset settles the unit: no guess
-    assert!(Recording::open(&dir().join("dsec.h5")).unwrap().notes.is_empty());
+    assert!(Recording::open(&dir().join("dsec.h5")).unwrap().notes().is_empty());
     // a wrong override is obeyed (the user knows best), 1000 times off
     let opts = OpenOptions { time_unit: Some(TimeUnit::Microseconds), ..Default::default() };
     let rec = Recording::open_with(&dir().join("e2calib.h5"), &opts).unwrap();
-    assert!(rec.notes.is_empty());
+    assert!(rec.notes().is_empty());
     let first = read_all(rec)[0];
     assert_eq!(first.t_us, reference()[0].t_us * 1000);
 }
@@ -138,8 +138,8 @@ fn aedat4_streams() {
 fn outcome(path: &std::path::Path) -> (usize, Option<ReadError>, Vec<String>) {
     match Recording::open(path) {
         Err(e) => (0, Some(e), Vec::new()),
-        Ok(mut rec) => {
-            let notes = std::mem::take(&mut rec.notes);
+        Ok(rec) => {
+            let notes = rec.notes();
             let mut n = 0;
             for e in rec {
                 match e {
@@ -263,7 +263,7 @@ fn files_without_their_index() {
         std::fs::write(&p, &b).unwrap();
         let rec = Recording::open(&p).unwrap();
         assert_eq!(rec.len, None);
-        assert!(rec.notes.len() == 1 && rec.notes[0].contains("no data table"), "{:?}", rec.notes);
+        assert!(rec.notes().len() == 1 && rec.notes()[0].contains("no data table"), "{:?}", rec.notes());
         assert_eq!(read_all(rec), want, "{name}");
         // cut inside the last packet
         std::fs::write(&p, &b[..b.len() - 5]).unwrap();
@@ -283,8 +283,8 @@ fn files_without_their_index() {
         std::fs::write(&p, &b).unwrap();
         let rec = Recording::open(&p).unwrap();
         assert_eq!(rec.sensor, Some(SensorSize::DAVIS346));
-        assert!(rec.notes.iter().any(|n| n.contains("no index")), "{:?}", rec.notes);
-        assert!(rec.notes.iter().any(|n| n.contains("reading topic '/dvs/events'")), "{:?}", rec.notes);
+        assert!(rec.notes().iter().any(|n| n.contains("no index")), "{:?}", rec.notes());
+        assert!(rec.notes().iter().any(|n| n.contains("reading topic '/dvs/events'")), "{:?}", rec.notes());
         assert_eq!(read_all(rec), want, "{name}");
         let opts = OpenOptions { topic: Some("/right/events".into()), ..Default::default() };
         assert_eq!(read_all(Recording::open_with(&p, &opts).unwrap())[..], want[..100]);

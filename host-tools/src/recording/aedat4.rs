@@ -354,6 +354,10 @@ impl EventSource for Aedat4Reader {
     fn progress_bytes(&self) -> u64 {
         self.pos
     }
+
+    fn notes(&self) -> Vec<String> {
+        self.notes.clone()
+    }
 }
 
 /// Reads until `buf` is full or the input ends; the count read.

@@ -599,6 +599,10 @@ impl EventSource for BagReader {
     fn progress_bytes(&self) -> u64 {
         self.pos
     }
+
+    fn notes(&self) -> Vec<String> {
+        self.notes.clone()
+    }
 }
 
 /// Decompresses a chunk's data into `out`, which must come to `size` bytes.

@@ -318,6 +318,10 @@ impl EventSource for H5ColumnsReader {
         // About 15 bytes a row (u16 x, y, u8 p, i64 t) against the file size.
         (self.next_row - self.buf.x.len() + self.at) as u64 * 15
     }
+
+    fn notes(&self) -> Vec<String> {
+        self.notes.clone()
+    }
 }
 
 /// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
@@ -471,7 +475,7 @@ mod test {
         assert_eq!(Format::detect(&a).unwrap(), Format::EventsGroupH5);
         let rec = Recording::open(&a).unwrap();
         assert_eq!((rec.len, rec.sensor), (Some(3), None));
-        assert!(rec.notes[0].contains("taken as us"), "{:?}", rec.notes);
+        assert!(rec.notes()[0].contains("taken as us"), "{:?}", rec.notes());
         let ev: Vec<Event> = rec.map(Result::unwrap).collect();
         assert_eq!(ev[1], Event { t_us: 7, x: 1, y: 1, polarity: false });
 
@@ -492,7 +496,7 @@ mod test {
         assert_eq!(Format::detect(&b).unwrap(), Format::RootColumnsH5);
         let rec = Recording::open(&b).unwrap();
         assert_eq!(rec.sensor, Some(SensorSize::DVXPLORER));
-        assert!(rec.notes.is_empty());
+        assert!(rec.notes().is_empty());
         let ev: Vec<Event> = rec.map(Result::unwrap).collect();
         assert_eq!(ev[2].t_us, 9_400_000);
 

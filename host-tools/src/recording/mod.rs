@@ -10,6 +10,7 @@ mod codec;
 mod flatbuf;
 mod h5;
 mod h5cols;
+pub mod prophesee;
 mod text;
 
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
@@ -18,7 +19,10 @@ pub use h5::{write_ecalib_h5, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
 pub use text::{write_text, TextReader};
 
-use evcal_core::event::{Event, SensorSize};
+use evcal_core::{
+    event::{Event, SensorSize},
+    evt::{Encoding, Evt21Order},
+};
 use std::{fmt, path::Path};
 
 /// A recording format evcal reads.
@@ -28,6 +32,10 @@ pub enum Format {
     Text,
     /// HDF5 with a dataset `events_data` of N x 4 `[x, y, p, t_seconds]` (E-Calib's layout).
     EcalibH5,
+    /// Prophesee RAW: a `%` header, then an EVT 2.0 / 2.1 / 3.0 stream.
+    PropheseeRaw(Encoding),
+    /// Prophesee `.dat` of CD events: a `%` header, then 8-byte records.
+    PropheseeDat,
     /// iniVation DV / dv-processing AEDAT 4.0 (the event stream; frames, IMU, triggers skipped).
     Aedat4,
     /// ROS1 bag (format 2.0) with `dvs_msgs/EventArray` messages.
@@ -56,7 +64,13 @@ impl Format {
         if head.starts_with(b"#ROSBAG V") {
             return Ok(Format::RosBag);
         }
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
+            if let Some(f) = prophesee::sniff(path, ext.as_deref())? {
+                return Ok(f);
+            }
+        }
+        match ext.as_deref() {
             Some("h5" | "hdf5") => Ok(Format::EcalibH5),
             Some("aedat4") => Ok(Format::Aedat4),
             Some("bag") => Ok(Format::RosBag),
@@ -69,6 +83,11 @@ impl Format {
         match self {
             Format::Text => "text (t x y p)",
             Format::EcalibH5 => "HDF5 (E-Calib events_data)",
+            Format::PropheseeRaw(Encoding::Evt2) => "Prophesee RAW EVT 2.0",
+            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::LowHalfFirst)) => "Prophesee RAW EVT 2.1",
+            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::HighHalfFirst)) => "Prophesee RAW EVT 2.1 (IMX636 order)",
+            Format::PropheseeRaw(Encoding::Evt3) => "Prophesee RAW EVT 3.0",
+            Format::PropheseeDat => "Prophesee DAT (CD events)",
             Format::Aedat4 => "AEDAT4 (iniVation DV)",
             Format::RosBag => "ROS1 bag (dvs_msgs/EventArray)",
             Format::EventsGroupH5 => "HDF5 (events/x,y,t,p)",
@@ -145,9 +164,6 @@ pub struct Recording {
     pub len: Option<u64>,
     /// Bytes in the file, for progress.
     pub file_bytes: u64,
-    /// What the reader decided or noticed that the user should hear about (a guessed time
-    /// unit, a missing index); the CLI prints them.
-    pub notes: Vec<String>,
     events: Box<dyn EventSource>,
 }
 
@@ -157,6 +173,10 @@ pub(crate) trait EventSource {
     fn next_event(&mut self) -> Option<Result<Event, ReadError>>;
     /// Bytes (or rows, scaled to bytes) consumed so far, for progress.
     fn progress_bytes(&self) -> u64;
+    /// What the reader skipped, dropped or assumed so far, one sentence each.
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 impl Recording {
@@ -169,28 +189,35 @@ impl Recording {
     pub fn open_with(path: &Path, opts: &OpenOptions) -> Result<Self, ReadError> {
         let format = Format::detect(path)?;
         let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
-        let rec =
-            |sensor, len, notes, events: Box<dyn EventSource>| Self { format, sensor, len, file_bytes, notes, events };
+        let rec = |sensor, len, events: Box<dyn EventSource>| Self { format, sensor, len, file_bytes, events };
         match format {
             Format::Text => {
                 let r = TextReader::open(path)?;
-                Ok(rec(r.sensor(), None, Vec::new(), Box::new(r)))
+                Ok(rec(r.sensor(), None, Box::new(r)))
             }
             Format::EcalibH5 => {
                 let r = H5Reader::open(path)?;
-                Ok(rec(None, Some(r.len()), Vec::new(), Box::new(r)))
+                Ok(rec(None, Some(r.len()), Box::new(r)))
             }
             Format::Aedat4 => {
                 let r = Aedat4Reader::open(path, opts.topic.as_deref())?;
-                Ok(rec(r.sensor(), r.len(), r.notes().to_vec(), Box::new(r)))
+                Ok(rec(r.sensor(), r.len(), Box::new(r)))
             }
             Format::RosBag => {
                 let r = BagReader::open(path, opts.topic.as_deref())?;
-                Ok(rec(r.sensor(), None, r.notes().to_vec(), Box::new(r)))
+                Ok(rec(r.sensor(), None, Box::new(r)))
             }
             Format::EventsGroupH5 | Format::RootColumnsH5 => {
                 let r = H5ColumnsReader::open(path, format, opts.time_unit)?;
-                Ok(rec(r.sensor(), Some(r.len()), r.notes().to_vec(), Box::new(r)))
+                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
+            }
+            Format::PropheseeRaw(enc) => {
+                let r = prophesee::RawReader::open(path, enc)?;
+                Ok(rec(r.sensor(), None, Box::new(r)))
+            }
+            Format::PropheseeDat => {
+                let r = prophesee::DatReader::open(path)?;
+                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
             }
         }
     }
@@ -198,6 +225,12 @@ impl Recording {
     /// Bytes of the file consumed so far (approximate for HDF5), for progress bars.
     pub fn progress_bytes(&self) -> u64 {
         self.events.progress_bytes()
+    }
+
+    /// What the reader skipped, dropped or assumed so far (complete once the events are
+    /// read), one sentence each: events a file holds but evcal could not use are said here.
+    pub fn notes(&self) -> Vec<String> {
+        self.events.notes()
     }
 }
 

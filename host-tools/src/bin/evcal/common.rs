@@ -48,7 +48,7 @@ impl ReadArgs {
     pub fn open(&self, path: &Path, quiet: bool) -> Result<Recording> {
         let rec = Recording::open_with(path, &self.options())?;
         if !quiet {
-            for n in &rec.notes {
+            for n in &rec.notes() {
                 eprintln!("evcal: note: {n}");
             }
         }
