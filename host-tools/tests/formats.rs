@@ -223,6 +223,20 @@ fn corrupted_files_never_lose_events_silently() {
 }
 
 #[test]
+fn older_versions_are_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (name, head, what) in [
+        ("old.aedat", &b"#!AER-DAT3.1\r\n#Format: RAW\r\n"[..], "AEDAT 2 and 3 are not supported"),
+        ("old.bag", &b"#ROSBAG V1.2\n\x00\x00"[..], "evcal reads format 2.0"),
+    ] {
+        let p = tmp.path().join(name);
+        std::fs::write(&p, head).unwrap();
+        let e = Recording::open(&p).err().unwrap().to_string();
+        assert!(e.contains(name) && e.contains(what), "{e}");
+    }
+}
+
+#[test]
 fn empty_files_are_errors() {
     let tmp = tempfile::tempdir().unwrap();
     for name in ["empty.aedat4", "empty.bag", "empty.h5"] {

@@ -108,10 +108,13 @@ impl Aedat4Reader {
         let mut magic = [0u8; 18];
         let got = read_up_to(&mut file, &mut magic).map_err(|e| ReadError::io(path, e))?;
         if got < MAGIC.len() || magic[..MAGIC.len()] != MAGIC[..] {
+            let start = String::from_utf8_lossy(&magic[..got.min(14)]).trim_end().to_string();
             let what = if got == 0 {
                 "the file is empty".to_string()
+            } else if start.starts_with("#!AER-DAT") {
+                format!("it is {start:?}: AEDAT 2 and 3 are not supported (DV converts them to AEDAT4)")
             } else {
-                format!("it starts {:?}", String::from_utf8_lossy(&magic[..got.min(14)]))
+                format!("it starts {start:?}")
             };
             return Err(at(0, format!("not an AEDAT4 file: expected the header '#!AER-DAT4.0', but {what}")));
         }

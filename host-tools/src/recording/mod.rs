@@ -58,7 +58,8 @@ impl Format {
             // Which HDF5 layout, by the datasets; E-Calib's reader lists them if none fits.
             return Ok(h5cols::layout(path).unwrap_or(Format::EcalibH5));
         }
-        if head.starts_with(aedat4::MAGIC) {
+        // AEDAT 2 and 3 too: the AEDAT4 reader says they are not supported.
+        if head.starts_with(b"#!AER-DAT") {
             return Ok(Format::Aedat4);
         }
         if head.starts_with(b"#ROSBAG V") {
