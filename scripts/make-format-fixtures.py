@@ -13,9 +13,9 @@ other people use to write them (not evcal's own writers):
 - the plain text `t x y p` list itself (events.txt), the reference the tests compare with.
 
 evcal's tests (host-tools/tests/formats.rs) read every file and require the same events as
-events.txt. The committed fixtures in host-tools/tests/fixtures/formats/ were made by
-this script; scripts/test.sh runs it again into target/ with the writers installed by
-scripts/setup.sh, so a change in those writers shows up in CI.
+events.txt. The committed fixtures in host-tools/tests/fixtures/formats/ were made by this
+script with the writer versions scripts/setup.sh pins (it reproduces them byte for byte);
+scripts/test.sh runs it again into target/ and reads what it wrote.
 
 Usage: make-format-fixtures.py OUT_DIR [EVENTS]
 (EVENTS, default 2000: larger lists for the read-throughput benchmark, benches/formats.rs)

@@ -24,7 +24,7 @@ python3 tests/fixtures/prophesee/make.py --check
 step "tests (host: unit, property, end to end; real recordings required)"
 EVCAL_REQUIRE_TEST_DATA=1 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
 
-step "recordings written now by dv-processing, rosbags and h5py (the installed versions)"
+step "recordings written again by dv-processing, rosbags, h5py (versions pinned in setup.sh), read again"
 python3 scripts/make-format-fixtures.py target/test-data/formats-fresh
 EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test formats 2>&1 \
   | tee -a target/test-output.txt
