@@ -28,6 +28,7 @@ pub struct DetectArgs {
 
 pub fn run(a: DetectArgs) -> Result<()> {
     let rec = a.read.open(&a.recording, a.quiet)?;
+    let notes_at_open = rec.notes();
     let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
     let cfg = a.core.config(sensor)?;
     let mut out: Box<dyn Write> = match &a.out {
@@ -64,6 +65,12 @@ pub fn run(a: DetectArgs) -> Result<()> {
         return Err(e).context("writing detections");
     }
     out.flush().context("writing detections")?;
+    if !a.quiet {
+        // What the reader noticed while reading (the notes of opening were printed then).
+        for n in rec.notes().iter().filter(|n| !notes_at_open.contains(n)) {
+            eprintln!("evcal: note: {n}");
+        }
+    }
     let s = summary?;
     if !a.quiet {
         eprintln!(
