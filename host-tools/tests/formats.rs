@@ -311,3 +311,34 @@ fn files_without_their_index() {
         assert!(msg.contains("truncated") && msg.contains("byte"), "{msg}");
     }
 }
+
+mod random_damage {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 300, ..ProptestConfig::default() })]
+
+        /// Several random bytes changed at once in an AEDAT4 or bag fixture: never a panic;
+        /// an error naming the file, or all 2000 events.
+        #[test]
+        fn never_fewer_events_silently(
+            file in 0usize..8,
+            edits in proptest::collection::vec((any::<prop::sample::Index>(), any::<u8>()), 1..8),
+        ) {
+            let name = FILES[file].0;
+            let mut b = std::fs::read(dir().join(name)).unwrap();
+            for (at, v) in &edits {
+                let i = at.index(b.len());
+                b[i] = *v;
+            }
+            let tmp = tempfile::tempdir().unwrap();
+            let p = tmp.path().join(name);
+            std::fs::write(&p, &b).unwrap();
+            match outcome(&p) {
+                (n, None, _) => prop_assert_eq!(n, 2000, "{}: {:?}", name, edits),
+                (_, Some(e), _) => prop_assert!(e.to_string().contains(name)),
+            }
+        }
+    }
+}

@@ -33,6 +33,9 @@ pub const MAGIC: &[u8; 14] = b"#!AER-DAT4.0\r\n";
 /// milliseconds of events), low enough that a corrupt size cannot exhaust memory.
 const MAX_DECOMPRESSED: u64 = 512 << 20;
 
+/// Bytes an `EVTS` packet may hold besides its events (its tables and padding: 28 in DV's).
+const MAX_PACKET_SLACK: usize = 128;
+
 /// Largest IOHeader accepted (its info node lists the streams: a few kB).
 const MAX_HEADER: u64 = 16 << 20;
 
@@ -283,7 +286,7 @@ impl Aedat4Reader {
             }
             self.pos = at + 8 + size;
             if id != self.stream.id {
-                self.file.seek_relative(size as i64).map_err(|e| self.err(at, e.to_string()))?;
+                self.skip_packet(at, id, size)?;
                 continue;
             }
             self.raw.resize(size as usize, 0);
@@ -299,6 +302,35 @@ impl Aedat4Reader {
             if count > 0 {
                 return Ok(true);
             }
+        }
+    }
+
+    /// Passes over a packet of another stream. Its stream must be one the header lists.
+    /// Without a readable data table (which would show events lost at the end), a packet
+    /// whose stream id was corrupted would hide its events: then each skipped packet's
+    /// first bytes are decompressed and its type checked against its stream's.
+    fn skip_packet(&mut self, at: u64, id: i32, size: u64) -> Result<(), ReadError> {
+        let Some(stream) = self.streams.iter().find(|s| s.id == id) else {
+            return Err(self.err(at, format!("a packet of stream {id}, which the header does not list: corrupt")));
+        };
+        if self.listed.is_some() || stream.type_id.len() != 4 {
+            return self.file.seek_relative(size as i64).map_err(|e| self.err(at, e.to_string()));
+        }
+        let want = stream.type_id.clone();
+        self.raw.resize(size as usize, 0);
+        self.file.read_exact(&mut self.raw).map_err(|e| self.err(at, format!("cannot read packet: {e}")))?;
+        let codec = codec_of(self.compression);
+        codec::decompress_prefix(codec, &self.raw, 12, &mut self.packet)
+            .map_err(|m| self.err(at, format!("packet of stream {id}: {m}")))?;
+        match self.packet.get(8..12) {
+            Some(got) if got == want.as_bytes() => Ok(()),
+            got => Err(self.err(
+                at,
+                format!(
+                    "a packet of stream {id} ({want}) holds {:?}: its stream id is corrupt",
+                    got.map(String::from_utf8_lossy).unwrap_or_default()
+                ),
+            )),
         }
     }
 
@@ -379,12 +411,15 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
 
 /// Decompresses one packet (or the data table) into `out`.
 fn decompress(c: Compression, raw: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
-    let codec = match c {
+    codec::decompress(codec_of(c), raw, MAX_DECOMPRESSED, out)
+}
+
+fn codec_of(c: Compression) -> Codec {
+    match c {
         Compression::None => Codec::None,
         Compression::Lz4 => Codec::Lz4,
         Compression::Zstd => Codec::Zstd,
-    };
-    codec::decompress(codec, raw, MAX_DECOMPRESSED, out)
+    }
 }
 
 /// Checks a decompressed `EVTS` packet; where its events start and how many there are.
@@ -396,10 +431,16 @@ fn events_of(packet: &[u8]) -> Result<(usize, usize), String> {
         None => return Err("too short for a FlatBuffer".into()),
     }
     let root = buf.root().ok_or("bad root table")?;
-    let Some((start, count)) = root.vector(0).ok_or("bad events vector")? else { return Ok((0, 0)) };
+    let (start, count) = root.vector(0).ok_or("bad events vector")?.unwrap_or((0, 0));
     let bytes = count.checked_mul(EVENT_BYTES).ok_or("absurd event count")?;
     if start.checked_add(bytes).is_none_or(|e| e > buf.0.len()) {
         return Err(format!("{count} events of {EVENT_BYTES} bytes do not fit in the packet"));
+    }
+    // Besides its events, a packet holds a few dozen bytes of tables. One much larger than its
+    // events has a corrupted count: packets carry no checksum (nor do DV's LZ4 frames), and
+    // the data table, which would show the loss, may be missing.
+    if buf.0.len() > bytes + MAX_PACKET_SLACK {
+        return Err(format!("{} bytes hold only {count} events: the event count is corrupt", buf.0.len()));
     }
     // Positions are relative to the FlatBuffer, which starts after the 4-byte size prefix.
     Ok((start + 4, count))
@@ -433,7 +474,8 @@ fn read_table(file: &mut BufReader<File>, pos: u64, file_len: u64, c: Compressio
         };
         if stream == id {
             let count = def.i64(2, 0).ok_or_else(|| format!("bad entry {i}"))?;
-            total += u64::try_from(count).map_err(|_| format!("entry {i}: negative count"))?;
+            let count = u64::try_from(count).map_err(|_| format!("entry {i}: negative count"))?;
+            total = total.checked_add(count).ok_or_else(|| format!("entry {i}: absurd count {count}"))?;
         }
     }
     Ok(total)

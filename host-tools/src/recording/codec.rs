@@ -48,6 +48,24 @@ pub(crate) fn decompress(codec: Codec, raw: &[u8], limit: u64, out: &mut Vec<u8>
     }
 }
 
+/// Decompresses the first `n` bytes of `raw` (fewer if it holds fewer) into `out`.
+pub(crate) fn decompress_prefix(codec: Codec, raw: &[u8], n: u64, out: &mut Vec<u8>) -> Result<(), String> {
+    out.clear();
+    let r = match codec {
+        Codec::None => {
+            out.extend_from_slice(&raw[..raw.len().min(n as usize)]);
+            return Ok(());
+        }
+        Codec::Lz4 => lz4_flex::frame::FrameDecoder::new(raw).take(n).read_to_end(out),
+        Codec::Zstd => match zstd::stream::read::Decoder::with_buffer(raw) {
+            Ok(d) => d.take(n).read_to_end(out),
+            Err(e) => return Err(format!("cannot start Zstandard: {e}")),
+        },
+        Codec::Bz2 => bzip2::read::MultiBzDecoder::new(raw).take(n).read_to_end(out),
+    };
+    r.map(|_| ()).map_err(|e| format!("cannot decompress ({codec:?}): {e}"))
+}
+
 /// Whether `raw` is whole LZ4 frames, each ending with its end mark (and content checksum,
 /// if its flags announce one). The decoder takes input that stops between two blocks as a
 /// complete frame, so a block cut after its last data byte would pass unnoticed; walking the
