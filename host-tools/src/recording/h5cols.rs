@@ -130,6 +130,9 @@ impl H5ColumnsReader {
             Ok(d)
         };
         let (x, y, t, p) = (ds("x")?, ds("y")?, ds("t")?, ds("p")?);
+        for (d, n) in [(&x, "x"), (&y, "y"), (&t, "t"), (&p, "p")] {
+            check_filters(d).map_err(|m| err(format!("'{prefix}{n}': {m}")))?;
+        }
         let lens = [x.size(), y.size(), t.size(), p.size()];
         if lens.iter().any(|&n| n != lens[0]) {
             return Err(err(format!(
@@ -322,6 +325,16 @@ impl EventSource for H5ColumnsReader {
     fn notes(&self) -> Vec<String> {
         self.notes.clone()
     }
+}
+
+/// Checks a dataset's compression parameters before any chunk is decompressed: hdf5-metno's
+/// Blosc filter dereferences a null name on an unknown compressor code (a crash, found by
+/// the random-damage test), so parameters that do not parse are refused here.
+fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
+    d.dcpl()
+        .and_then(|p| p.get_filters())
+        .map(|_| ())
+        .map_err(|e| format!("its compression parameters are corrupt ({e})"))
 }
 
 /// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
