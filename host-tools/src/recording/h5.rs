@@ -31,6 +31,7 @@ impl H5Reader {
                  datasets x, y, t, p in 'events/' or at the root; the file has: [{names}]"
             ))
         })?;
+        super::h5cols::check_filters(&ds).map_err(|m| err(format!("'events_data': {m}")))?;
         let shape = ds.shape();
         if shape.len() != 2 || shape[1] != 4 {
             return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));

@@ -330,7 +330,7 @@ impl EventSource for H5ColumnsReader {
 /// Checks a dataset's compression parameters before any chunk is decompressed: hdf5-metno's
 /// Blosc filter dereferences a null name on an unknown compressor code (a crash, found by
 /// the random-damage test), so parameters that do not parse are refused here.
-fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
+pub(crate) fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
     d.dcpl()
         .and_then(|p| p.get_filters())
         .map(|_| ())
