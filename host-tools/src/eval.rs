@@ -105,6 +105,43 @@ pub fn simulate(
     (events, sim)
 }
 
+/// Simulates only what the windows of `window` need: from each tick (every `step_us`) until
+/// `events` events have come (plus the timestamp jitter's reach), then jumps to the next tick
+/// ([`Simulator::skip_to`]). With windows of a few milliseconds every 33 ms this is several
+/// times faster than [`simulate`], and the windows the detector cuts are equally distributed.
+/// `progress` is called with the simulated time reached, seconds.
+pub fn simulate_windows(
+    sim_cfg: crate::sim::SimConfig,
+    seconds: f64,
+    window: evcal_core::window::WindowConfig,
+    mut progress: impl FnMut(f64),
+) -> (Vec<evcal_core::event::Event>, crate::sim::Simulator) {
+    let mut sim = crate::sim::Simulator::new(sim_cfg);
+    let mut events = Vec::new();
+    let step = (window.step_us as f64 * 1e-6).max(1e-3);
+    let start_us = sim.config().start_us;
+    let mut tick = 0.0f64;
+    while tick < seconds {
+        sim.skip_to(tick);
+        let from = events.len();
+        let tick_us = start_us + (tick * 1e6).round() as u64;
+        // Simulate in short steps until the window (events at or after the tick) is full.
+        let mut t = tick;
+        loop {
+            t = (t + 1e-3).min(seconds);
+            sim.run_until(t, |batch| events.extend_from_slice(batch));
+            let in_window = events[from..].iter().filter(|e| e.t_us >= tick_us).count();
+            if in_window >= window.events + 64 || t >= seconds || t >= tick + step {
+                break;
+            }
+        }
+        progress(t);
+        tick += step;
+    }
+    events.sort_by_key(|e| e.t_us);
+    (events, sim)
+}
+
 /// Runs events through the detection core and calls `each` with every window's record and
 /// the simulator's truth at the window's `t_ref`.
 pub fn detect_with_truth(

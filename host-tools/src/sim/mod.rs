@@ -339,16 +339,7 @@ impl Simulator {
         let mut produced = 0u64;
         if !self.started {
             self.started = true;
-            let pose = self.pose_at(0.0);
-            let origin: [f64; 3] = pose.centre().into();
-            let to_board = *pose.rotation.inverse().matrix();
-            for p in 0..npix {
-                let (l, _) = self.log_intensity(&to_board, origin, p);
-                let st = &mut self.pixels[p];
-                st.level = l;
-                // Pixels start at random points of their threshold cycle, as after any history.
-                st.reference = l + self.rng.random_range(-st.off..st.on) * 0.999;
-            }
+            self.settle(0.0);
         }
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(8);
         let noise_rate = px.background_hz * npix as f64;
@@ -419,6 +410,84 @@ impl Simulator {
             self.t = t1;
         }
         produced
+    }
+
+    /// Jumps to `seconds` since the start without simulating the time between: every pixel
+    /// takes the scene's log intensity there and a random point of its threshold cycle, as
+    /// after any history. The events of a window depend on the pixels' states only through
+    /// those random phases, so the windows that follow are those of a continuous run, at a
+    /// fraction of the cost when windows are far apart (`evcal demo` simulates only the few
+    /// milliseconds after each window tick). Events produced before the jump are kept.
+    pub fn skip_to(&mut self, seconds: f64) {
+        if seconds <= self.t {
+            return;
+        }
+        self.started = true;
+        self.t = seconds;
+        self.settle(seconds);
+    }
+
+    /// Every pixel at the scene's log intensity at `t` and a random phase of its cycle, as its
+    /// history would leave it: a pixel fires on its way to where it is, so its reference level
+    /// lies within one threshold behind the present level, on the side the intensity came
+    /// from. For a pixel an edge is crossing that is the side it is changing from; for a still
+    /// one, the side of its last change: a pixel brighter than the scene's middle grey was
+    /// last reached from darker (paper after a printed circle passed), a darker one from
+    /// brighter. Without that memory a still pixel would fire its first event on an arriving
+    /// edge too early, and the windows after a jump would differ from a continuous run's.
+    fn settle(&mut self, t: f64) {
+        // Long enough for the fastest edges to move a small fraction of a pixel.
+        let dt = (0.05 / self.speed_bound(t)).max(1e-6);
+        let now = self.levels_at(t, None);
+        // Only pixels an edge's blurred zone covers can be changing.
+        let before = if t > dt { self.levels_at(t - dt, Some(&now)) } else { now.clone() };
+        let (lo_l, hi_l) = now.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &(l, _)| (a.min(l), b.max(l)));
+        let middle = 0.5 * (lo_l + hi_l);
+        for ((st, (l, _)), (b, _)) in self.pixels.iter_mut().zip(now).zip(before) {
+            st.level = l;
+            let falling = if l < b - 1e-9 {
+                true
+            } else if l > b + 1e-9 {
+                false
+            } else {
+                l < middle
+            };
+            // Falling: the last OFF event's level is above; rising: the last ON's is below.
+            let (lo, hi) = if falling { (0.0, st.off) } else { (-st.on, 0.0) };
+            // Strictly within a threshold: l − on < reference < l + off.
+            st.reference = l + self.rng.random_range(lo..hi) * 0.999;
+            st.last = f64::NEG_INFINITY;
+            st.next_eval = t;
+        }
+    }
+
+    /// The scene's log intensity at every pixel at `t`, and the distance to the nearest edge's
+    /// blurred zone (px). With `near`, only pixels within an edge zone there are evaluated;
+    /// the others keep `near`'s values.
+    fn levels_at(&self, t: f64, near: Option<&[(f64, f64)]>) -> Vec<(f64, f64)> {
+        let pose = self.pose_at(t);
+        let origin: [f64; 3] = pose.centre().into();
+        let to_board = *pose.rotation.inverse().matrix();
+        let npix = self.pixels.len();
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(8);
+        let band = npix.div_ceil(threads).max(1);
+        std::thread::scope(|s| {
+            let handles: Vec<_> = (0..npix)
+                .step_by(band)
+                .map(|start| {
+                    let end = (start + band).min(npix);
+                    s.spawn(move || {
+                        (start..end)
+                            .map(|p| match near.map(|n| n[p]) {
+                                Some(far) if far.1 > 1.0 => far,
+                                _ => self.log_intensity(&to_board, origin, p),
+                            })
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            handles.into_iter().flat_map(|h| h.join().expect("simulator band panicked")).collect()
+        })
     }
 
     fn to_us(&self, t: f64) -> u64 {
