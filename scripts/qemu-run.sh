@@ -4,7 +4,7 @@
 # that a hung firmware can never hang CI.
 #   EVCAL_QEMU_SERIAL  QEMU -serial argument (default: null), e.g. tcp:127.0.0.1:4555,server=on,wait=on,nodelay=on
 #   EVCAL_QEMU_TIMEOUT seconds before QEMU is killed (default: 600)
-#   EVCAL_QEMU_EXTRA   extra QEMU arguments (e.g. the instruction-count plugin)
+# Further arguments go to QEMU after the image (e.g. -append "bench FILE", -plugin ...).
 set -euo pipefail
 elf="$1"; shift || true
 exec timeout --kill-after=5 "${EVCAL_QEMU_TIMEOUT:-600}" qemu-system-arm \
@@ -12,5 +12,4 @@ exec timeout --kill-after=5 "${EVCAL_QEMU_TIMEOUT:-600}" qemu-system-arm \
   -icount shift=0 \
   -semihosting-config enable=on,target=native \
   -serial "${EVCAL_QEMU_SERIAL:-null}" \
-  ${EVCAL_QEMU_EXTRA:-} \
   -kernel "$elf" "$@"

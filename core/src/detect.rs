@@ -129,6 +129,19 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
         }
     }
 
+    /// Starts over with a new configuration, as `new(cfg)` would, but in place: nothing of
+    /// the detector's tens of kilobytes is rebuilt on the stack (the firmware keeps it in a
+    /// `static` and reconfigures it when the host sends a configuration).
+    pub fn reconfigure(&mut self, cfg: DetectConfig) {
+        self.cfg = cfg;
+        self.filter = InputFilter::new(cfg.sensor);
+        self.windower.reset(cfg.window);
+        self.out.info = WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
+        self.out.stats = WindowStats::default();
+        self.out.centres.clear();
+        self.ready = false;
+    }
+
     /// The configuration in force (events per window after clamping).
     pub const fn config(&self) -> DetectConfig {
         let mut cfg = self.cfg;
@@ -301,4 +314,58 @@ fn merge_crescents<const C: usize>(
         i += 1;
     }
     merged
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::window::WindowConfig;
+
+    /// Two rings of radius 6 that drift, plus scattered pixels: windows with circles.
+    fn events(n: u64, seed: u64) -> Vec<Event> {
+        (0..n)
+            .map(|i| {
+                let h = (i ^ seed).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                let (cx, cy) =
+                    if i % 2 == 0 { (18.0 + i as f32 / 900.0, 16.0) } else { (42.0, 26.0 + i as f32 / 1000.0) };
+                let a = (h % 360) as f32 * core::f32::consts::PI / 180.0;
+                let (x, y) = if h % 9 == 0 {
+                    ((h % 60) as f32, ((h >> 8) % 40) as f32)
+                } else {
+                    (cx + 6.0 * a.cos(), cy + 6.0 * a.sin())
+                };
+                Event { t_us: i * 3, x: x.round() as u16, y: y.round() as u16, polarity: h % 2 == 0 }
+            })
+            .collect()
+    }
+
+    fn run(det: &mut Detector<256, 16, 128>, evs: &[Event]) -> Vec<Detection<16>> {
+        evs.iter().filter_map(|e| det.push(*e).cloned()).collect()
+    }
+
+    #[test]
+    fn reconfigure_is_the_same_as_new() {
+        let mut a = DetectConfig::new(SensorSize::new(64, 48));
+        a.window = WindowConfig { events: 200, step_us: 700 };
+        a.cluster.eps = 0.06;
+        let mut b = DetectConfig::new(SensorSize::new(60, 40));
+        b.window = WindowConfig { events: 250, step_us: 0 };
+        b.cluster.eps = 0.07;
+        b.cluster.min_pts = 6;
+        let (ea, eb) = (events(3000, 1), events(2500, 2));
+
+        let mut reused: Box<Detector<256, 16, 128>> = Box::new(Detector::new(a));
+        let first = run(&mut reused, &ea);
+        assert!(first.len() >= 5 && first.iter().any(|d| !d.centres.is_empty()), "the data make detections");
+        reused.reconfigure(b);
+        assert_eq!(reused.config(), b);
+        assert_eq!((reused.pending(), reused.input_stats()), (0, InputStats::default()));
+        let again = run(&mut reused, &eb);
+
+        let mut fresh: Box<Detector<256, 16, 128>> = Box::new(Detector::new(b));
+        let want = run(&mut fresh, &eb);
+        assert!(want.len() >= 5);
+        assert_eq!(again, want);
+        assert_eq!(reused.input_stats(), fresh.input_stats());
+    }
 }

@@ -2,23 +2,22 @@
 //! real boards are interchangeable.
 //!
 //! A board provides a serial port (through `embedded-io` traits, so any HAL's UART plugs
-//! in), a free-running tick counter for per-stage timing, and a way to end the program.
-
-#[cfg(all(feature = "board-mps2-an386", feature = "board-stm32f405"))]
-compile_error!("choose one board: features board-mps2-an386 and board-stm32f405 exclude each other");
+//! in), a free-running core-clock tick counter for per-stage timing, a way to report a fatal
+//! error, and a way to end the program. The board is chosen at build time: the emulated
+//! `mps2-an386` by default, a real STM32F405/407 with the `board-stm32f405` feature.
 
 #[cfg(not(feature = "board-stm32f405"))]
 mod mps2_an386;
 #[cfg(not(feature = "board-stm32f405"))]
-pub use mps2_an386::{init, BoardImpl};
+pub use mps2_an386::{exit, init, report, BoardImpl};
 
 #[cfg(feature = "board-stm32f405")]
 mod stm32f405;
 #[cfg(feature = "board-stm32f405")]
-pub use stm32f405::{init, BoardImpl};
+pub use stm32f405::{exit, init, report, BoardImpl};
 
 mod systick;
-pub use systick::Ticks;
+pub use systick::SysTickClock;
 
 /// What the application needs of a board.
 pub trait Board {
@@ -26,11 +25,11 @@ pub trait Board {
     type Serial: embedded_io::Read + embedded_io::ReadReady + embedded_io::Write;
     /// The serial link.
     fn serial(&mut self) -> &mut Self::Serial;
-    /// Core-clock ticks since start (wrapping), for per-stage timing.
-    fn ticks(&self) -> u32;
+    /// The core-clock tick counter (SysTick), for per-stage timing.
+    fn clock(&self) -> SysTickClock;
     /// Core clock in Hz (what one tick is).
     fn clock_hz(&self) -> u32;
-    /// Ends the program with a status: under QEMU this is its exit code; on hardware the
-    /// board halts (a debugger sees the breakpoint).
-    fn exit(&mut self, code: i32) -> !;
+    /// Bytes the serial receiver lost because they arrived before the previous one was read
+    /// (hardware overruns; 0 where the link cannot overrun, as in QEMU).
+    fn serial_overruns(&self) -> u32;
 }

@@ -1,9 +1,11 @@
 //! QEMU's `mps2-an386`: Cortex-M4 with FPU, UART0 a CMSDK APB UART at 0x4000_4000.
 //!
-//! Run with `-icount shift=0` so that the core clock (and SysTick) advances one tick per
-//! instruction-nanosecond: deterministic timings.
+//! Run with `-icount shift=0`: each instruction then takes 1 ns of virtual time, and SysTick,
+//! on the 25 MHz system clock, ticks once every 40 instructions, deterministically.
+//! Semihosting (`-semihosting-config enable=on,target=native`) carries diagnostics, the exit
+//! code and, for fast replays, host files.
 
-use super::{Board, Ticks};
+use super::{Board, SysTickClock};
 use core::convert::Infallible;
 use cortex_m_semihosting::debug;
 
@@ -92,7 +94,7 @@ impl embedded_io::Write for CmsdkUart {
 /// The emulated board.
 pub struct BoardImpl {
     uart: CmsdkUart,
-    ticks: Ticks,
+    clock: SysTickClock,
 }
 
 /// Brings the board up: UART0, SysTick.
@@ -100,7 +102,7 @@ pub fn init(cp: cortex_m::Peripherals) -> BoardImpl {
     // SAFETY: UART0 is used by this board value only, which `init` makes once (it consumes
     // the core peripherals, which exist once).
     let uart = unsafe { CmsdkUart::new(UART0) };
-    BoardImpl { uart, ticks: Ticks::start(cp.SYST) }
+    BoardImpl { uart, clock: SysTickClock::start(cp.SYST) }
 }
 
 impl Board for BoardImpl {
@@ -110,8 +112,8 @@ impl Board for BoardImpl {
         &mut self.uart
     }
 
-    fn ticks(&self) -> u32 {
-        self.ticks.now()
+    fn clock(&self) -> SysTickClock {
+        self.clock
     }
 
     fn clock_hz(&self) -> u32 {
@@ -120,14 +122,25 @@ impl Board for BoardImpl {
         25_000_000
     }
 
-    fn exit(&mut self, code: i32) -> ! {
-        exit(code)
+    fn serial_overruns(&self) -> u32 {
+        // QEMU holds input back while the one-byte receive buffer is full.
+        0
     }
 }
 
-/// Ends QEMU with `code` (0 success) through semihosting.
-pub fn exit(code: i32) -> ! {
-    debug::exit(if code == 0 { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
-    #[allow(clippy::empty_loop)]
-    loop {}
+/// Ends QEMU with exit status 0 (`ok`) or 1 through semihosting.
+pub fn exit(ok: bool) -> ! {
+    loop {
+        debug::exit(if ok { debug::EXIT_SUCCESS } else { debug::EXIT_FAILURE });
+    }
+}
+
+/// Prints a line on the emulator's standard error (semihosting), for diagnostics that must
+/// reach the person running it (faults, usage errors) whether or not defmt is built in.
+pub fn report(args: core::fmt::Arguments) {
+    use core::fmt::Write;
+    if let Ok(mut err) = cortex_m_semihosting::hio::hstderr() {
+        let _ = err.write_fmt(args);
+        let _ = err.write_str("\n");
+    }
 }

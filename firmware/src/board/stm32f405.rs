@@ -4,8 +4,13 @@
 //! Raw registers keep this free of a HAL dependency; a HAL's UART (anything implementing
 //! `embedded-io`) can replace [`Usart`] as well. Flash with `probe-rs run --chip STM32F405RGTx`
 //! (see README). No board is here to test it: it is built in CI, not run.
+//!
+//! The receiver is polled: the protocol's flow control (the host sends an event batch only
+//! when the device has asked for one and is waiting for it) keeps bytes from arriving while
+//! a window is processed. Bytes lost anyway (a host that ignores it) are counted as
+//! overruns, never silently.
 
-use super::{Board, Ticks};
+use super::{Board, SysTickClock};
 use core::convert::Infallible;
 
 const RCC: usize = 0x4002_3800;
@@ -44,24 +49,32 @@ fn clocks() {
 }
 
 /// USART2, polled.
-pub struct Usart;
+pub struct Usart {
+    overruns: u32,
+}
 
 impl Usart {
     fn init() -> Self {
         modify(RCC + 0x30, 0, 1); // GPIOAEN
         modify(RCC + 0x40, 0, 1 << 17); // USART2EN
-        // PA2, PA3: alternate function 7.
+                                        // PA2, PA3: alternate function 7.
         modify(GPIOA, 0b1111 << 4, 0b1010 << 4);
         modify(GPIOA + 0x20, 0xFF << 8, 0x77 << 8);
         // USARTDIV = f / (16 baud), as mantissa and 4-bit fraction, rounded.
         let div16 = (APB1_HZ + BAUD / 2) / BAUD;
         wr(USART2 + 0x08, div16);
         wr(USART2 + 0x0C, (1 << 13) | (1 << 3) | (1 << 2)); // UE, TE, RE
-        Self
+        Self { overruns: 0 }
     }
 
-    fn rx_ready() -> bool {
-        rd(USART2) & (1 << 5) != 0
+    /// Whether a byte waits in the receiver; counts an overrun (ORE, bit 3), which the
+    /// following data-register read clears.
+    fn rx_ready(&mut self) -> bool {
+        let sr = rd(USART2);
+        if sr & (1 << 3) != 0 {
+            self.overruns = self.overruns.wrapping_add(1);
+        }
+        sr & (1 << 5) != 0
     }
 }
 
@@ -74,9 +87,9 @@ impl embedded_io::Read for Usart {
         if buf.is_empty() {
             return Ok(0);
         }
-        while !Self::rx_ready() {}
+        while !self.rx_ready() {}
         let mut n = 0;
-        while n < buf.len() && Self::rx_ready() {
+        while n < buf.len() && self.rx_ready() {
             buf[n] = rd(USART2 + 0x04) as u8;
             n += 1;
         }
@@ -86,7 +99,7 @@ impl embedded_io::Read for Usart {
 
 impl embedded_io::ReadReady for Usart {
     fn read_ready(&mut self) -> Result<bool, Infallible> {
-        Ok(Self::rx_ready())
+        Ok(self.rx_ready())
     }
 }
 
@@ -108,13 +121,13 @@ impl embedded_io::Write for Usart {
 /// The STM32F405 board.
 pub struct BoardImpl {
     uart: Usart,
-    ticks: Ticks,
+    clock: SysTickClock,
 }
 
 /// Brings the board up: clocks, USART2, SysTick.
 pub fn init(cp: cortex_m::Peripherals) -> BoardImpl {
     clocks();
-    BoardImpl { uart: Usart::init(), ticks: Ticks::start(cp.SYST) }
+    BoardImpl { uart: Usart::init(), clock: SysTickClock::start(cp.SYST) }
 }
 
 impl Board for BoardImpl {
@@ -124,18 +137,33 @@ impl Board for BoardImpl {
         &mut self.uart
     }
 
-    fn ticks(&self) -> u32 {
-        self.ticks.now()
+    fn clock(&self) -> SysTickClock {
+        self.clock
     }
 
     fn clock_hz(&self) -> u32 {
         SYSCLK_HZ
     }
 
-    fn exit(&mut self, code: i32) -> ! {
-        let _ = code;
-        loop {
-            cortex_m::asm::bkpt();
-        }
+    fn serial_overruns(&self) -> u32 {
+        self.uart.overruns
     }
+}
+
+/// Halts: a debugger (probe-rs) sees the breakpoint. `ok` is for the debugger's log.
+pub fn exit(ok: bool) -> ! {
+    #[cfg(feature = "defmt")]
+    defmt::info!("evcal firmware stops (ok: {})", ok);
+    let _ = ok;
+    loop {
+        cortex_m::asm::bkpt();
+    }
+}
+
+/// Reports a fatal error: over RTT with the `defmt` feature, else nowhere (a real board has
+/// no console of its own; the host sees the link go quiet).
+pub fn report(args: core::fmt::Arguments) {
+    #[cfg(feature = "defmt")]
+    defmt::error!("{}", defmt::Display2Format(&args));
+    let _ = args;
 }
