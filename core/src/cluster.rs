@@ -1,14 +1,18 @@
-//! Grid-hashed DBSCAN over one window's events.
+//! DBSCAN over one window's events, on a sorted pixel grid.
 //!
 //! Coordinates are normalised by the sensor size (x / W, y / H) as in the paper, so one
 //! `eps` (default 0.015) serves every sensor. The optional spatio-temporal variant
-//! (ST-DBSCAN) also requires `|Δt| / T <= eps_t`, with `T` the window's duration.
+//! (ST-DBSCAN) also requires `|Δt| ≤ eps_t · T`, with `T` the window's duration.
 //!
-//! Neighbour queries go through a fixed-size spatial hash: pixels are binned into cells at
-//! least `eps` wide in each axis, cells are hashed into `B` buckets, and the window's events
-//! are sorted in place by bucket. An eps-neighbourhood then lies in the 3 x 3 cells around
-//! a point, so a query scans at most 9 contiguous runs of events: the work is linear in the
-//! events for a bounded density, and no memory beyond the fixed arrays is needed.
+//! The grid is the sensor's own pixel grid: the window's events are sorted in place by
+//! pixel (row, then column), which makes every row of the grid a contiguous run. The
+//! eps-neighbourhood of a pixel covers a few rows (`⌊eps·H⌋` either side) and, in each, one
+//! contiguous span of columns; and as the events are visited in sorted order, the start and
+//! end of each such span only ever move forward. So a sweep that keeps two cursors per
+//! neighbouring row counts every event's neighbours exactly, in constant time per row,
+//! without comparing pairs of events: the work is linear in the events (after the sort) and
+//! the only memory is the events and one label per event. Border points and the links
+//! between core points come from the same spans.
 //!
 //! The result is exactly that of textbook DBSCAN on the same (reordered) events, with one
 //! rule made explicit so that it does not depend on the visiting order: a border point joins
@@ -29,6 +33,14 @@ pub const DROPPED: u16 = 0x7FFE;
 /// Marks a core point in the label array while clustering runs.
 const CORE: u16 = 0x8000;
 const MASK: u16 = 0x7FFF;
+/// A border point without a core neighbour (yet), while border points are settled.
+const NONE: u16 = 0x7FFF;
+
+/// Most rows either side of a pixel that a neighbourhood may span with the sweep's cursors
+/// (`⌊eps·H⌋`: 3 for the defaults on a DAVIS346, 10 on a 1280 x 720 sensor). Wider
+/// neighbourhoods (eps above 0.1 or so, far from any useful setting) are still exact, by
+/// comparing every pair of events.
+pub const MAX_REACH_ROWS: usize = 32;
 
 /// DBSCAN settings, in normalised coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -79,110 +91,162 @@ pub struct ClusterRange {
     pub end: u16,
 }
 
-/// Precomputed geometry of one run: cell sizes, hash, distance scales.
-#[derive(Clone, Copy)]
-struct Geometry {
-    cell_w: u16,
-    cell_h: u16,
-    cells_x: u32,
-    sx: f32,
-    sy: f32,
-    eps2: f32,
-    /// 1 / window duration, for ST-DBSCAN; 0 when time is ignored.
-    st: Option<(f32, f32)>,
-}
-
-impl Geometry {
-    fn new(sensor: SensorSize, cfg: &ClusterConfig, duration_us: u32) -> Self {
-        let w = f32::from(sensor.width.max(1));
-        let h = f32::from(sensor.height.max(1));
-        let eps = if cfg.eps.is_finite() && cfg.eps > 0.0 { cfg.eps } else { 0.0 };
-        // A cell at least eps wide keeps every eps-neighbour within the adjacent cells.
-        let cell = |size: f32| -> u16 {
-            let c = libm::ceilf(eps * size);
-            if c >= 65535.0 {
-                u16::MAX
-            } else if c >= 1.0 {
-                c as u16
-            } else {
-                1
-            }
-        };
-        let cell_w = cell(w);
-        let cell_h = cell(h);
-        let st = match cfg.eps_t {
-            Some(et) if et.is_finite() && et >= 0.0 => {
-                let inv = if duration_us > 0 { 1.0 / duration_us as f32 } else { 0.0 };
-                Some((inv, et))
-            }
-            _ => None,
-        };
-        Self {
-            cell_w,
-            cell_h,
-            cells_x: u32::from(sensor.width.max(1)) / u32::from(cell_w) + 1,
-            sx: 1.0 / (w * w),
-            sy: 1.0 / (h * h),
-            eps2: eps * eps,
-            st,
-        }
-    }
-
-    fn cell(&self, e: &WindowEvent) -> (u32, u32) {
-        (u32::from(e.x / self.cell_w), u32::from(e.y / self.cell_h))
-    }
-
-    fn bucket<const B: usize>(&self, cx: u32, cy: u32) -> usize {
-        // A row-major cell index spreads neighbouring cells over distinct buckets; the
-        // multiplicative mix keeps far-apart cells that collide from forming patterns.
-        let idx = cy.wrapping_mul(self.cells_x).wrapping_add(cx);
-        (idx.wrapping_mul(0x9E37_79B1) >> 7) as usize % B
-    }
-
-    fn neighbours(&self, a: &WindowEvent, b: &WindowEvent) -> bool {
-        let dx = f32::from(a.x) - f32::from(b.x);
-        let dy = f32::from(a.y) - f32::from(b.y);
-        if dx * dx * self.sx + dy * dy * self.sy > self.eps2 {
-            return false;
-        }
-        match self.st {
-            None => true,
-            Some((inv, eps_t)) => {
-                let dt = a.dt_us.abs_diff(b.dt_us);
-                dt as f32 * inv <= eps_t
-            }
-        }
-    }
-
-    /// The distinct buckets of the 3 x 3 cells around `e`.
-    fn around<const B: usize>(&self, e: &WindowEvent) -> ([u16; 9], usize) {
-        let (cx, cy) = self.cell(e);
-        let mut out = [0u16; 9];
-        let mut n = 0;
-        for ny in cy.saturating_sub(1)..=cy + 1 {
-            for nx in cx.saturating_sub(1)..=cx + 1 {
-                let b = self.bucket::<B>(nx, ny) as u16;
-                // Two cells may share a bucket: scan it once, or neighbours count twice.
-                if !out[..n].contains(&b) {
-                    out[n] = b;
-                    n += 1;
-                }
-            }
-        }
-        (out, n)
-    }
-}
-
-/// DBSCAN over at most `N` events per run, keeping at most `C` clusters, with a spatial hash
-/// of `B` buckets. All memory is inline: about `2N + 4B + 4C` bytes.
+/// DBSCAN's neighbourhood in exact integer arithmetic: events `a` and `b` are neighbours when
+/// `(Δx/W)² + (Δy/H)² ≤ eps²`, evaluated as `Δx²·H² + Δy²·W² ≤ ⌊(eps·W·H)²⌋`, and, for
+/// ST-DBSCAN, `|Δt| ≤ ⌊eps_t·T⌋` microseconds with `T` the window's duration.
 ///
-/// `N` must be below 32 768 and `B` below 65 536 (checked at compile time).
+/// Integers make the test exact and identical on every machine; the only rounding is of the
+/// thresholds, once per window, in IEEE double precision (also identical everywhere).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Metric {
+    h2: u64,
+    w2: u64,
+    threshold: u64,
+    /// Largest |Δy| of any neighbour pair.
+    reach_y: u64,
+    dt_max: Option<u32>,
+}
+
+impl Metric {
+    /// The neighbourhood for a sensor, a configuration and a window lasting `duration_us`.
+    pub fn new(sensor: SensorSize, cfg: &ClusterConfig, duration_us: u32) -> Self {
+        let w = u64::from(sensor.width.max(1));
+        let h = u64::from(sensor.height.max(1));
+        let eps = if cfg.eps.is_finite() && cfg.eps > 0.0 { f64::from(cfg.eps) } else { 0.0 };
+        let side = eps * (w * h) as f64;
+        // Float-to-integer casts saturate (and map NaN to 0): no overflow whatever eps is.
+        let threshold = (side * side) as u64;
+        let dt_max = match cfg.eps_t {
+            Some(et) if et.is_finite() && et >= 0.0 => Some((f64::from(et) * f64::from(duration_us)) as u32),
+            Some(_) => Some(0),
+            None => None,
+        };
+        Self { h2: h * h, w2: w * w, threshold, reach_y: isqrt(threshold / (w * w)), dt_max }
+    }
+
+    /// Whether `a` and `b` are neighbours in space (eps).
+    #[inline]
+    fn near_in_space(&self, a: &WindowEvent, b: &WindowEvent) -> bool {
+        let dy = u64::from(a.y.abs_diff(b.y));
+        dy <= self.reach_y && u64::from(a.x.abs_diff(b.x)) <= self.span(dy)
+    }
+
+    /// Whether `a` and `b` are within eps of each other (and, for ST-DBSCAN, of eps_t).
+    #[inline]
+    pub fn neighbours(&self, a: &WindowEvent, b: &WindowEvent) -> bool {
+        self.near_in_space(a, b) && self.near_in_time(a, b)
+    }
+
+    #[inline]
+    fn near_in_time(&self, a: &WindowEvent, b: &WindowEvent) -> bool {
+        self.dt_max.is_none_or(|m| a.dt_us.abs_diff(b.dt_us) <= m)
+    }
+
+    /// The largest |Δx| of a neighbour `dy` rows away (`dy ≤ reach_y`).
+    #[inline]
+    fn span(&self, dy: u64) -> u64 {
+        // dy ≤ reach_y keeps dy²·W² within the threshold: no overflow.
+        isqrt((self.threshold - dy * dy * self.w2) / self.h2)
+    }
+}
+
+/// ⌊√x⌋, exactly.
+fn isqrt(x: u64) -> u64 {
+    let mut r = libm::sqrt(x as f64) as u64;
+    while r > 0 && r.checked_mul(r).is_none_or(|q| q > x) {
+        r -= 1;
+    }
+    while (r + 1).checked_mul(r + 1).is_some_and(|q| q <= x) {
+        r += 1;
+    }
+    r
+}
+
+/// A pixel as the sort orders it: row, then column.
+#[inline]
+fn pixel(e: &WindowEvent) -> u32 {
+    (u32::from(e.y) << 16) | u32::from(e.x)
+}
+
+/// A run of events sharing one pixel row, `events[start..end]`, sorted by column.
+#[derive(Clone, Copy, Default)]
+struct Row {
+    y: u16,
+    start: u16,
+    end: u16,
+}
+
+/// The rows of the sorted events, each with the rows at most `reach` above it: the pairs of
+/// rows that can hold neighbours. Rows come in order; the window of recent rows is fixed.
+struct Rows {
+    reach: usize,
+    at: usize,
+    recent: [Row; MAX_REACH_ROWS + 1],
+    len: usize,
+}
+
+impl Rows {
+    fn new(reach: usize) -> Self {
+        Self { reach, at: 0, recent: [Row::default(); MAX_REACH_ROWS + 1], len: 0 }
+    }
+
+    /// The next row, and the earlier rows within reach of it (nearest last). `None` at the
+    /// end.
+    fn next(&mut self, events: &[WindowEvent]) -> Option<(Row, &[Row])> {
+        let start = self.at;
+        let y = events.get(start)?.y;
+        let mut end = start + 1;
+        while end < events.len() && events[end].y == y {
+            end += 1;
+        }
+        self.at = end;
+        // Forget rows out of reach of this one, then offer the rest.
+        let keep_from = (0..self.len).find(|&k| usize::from(y - self.recent[k].y) <= self.reach).unwrap_or(self.len);
+        self.recent.copy_within(keep_from..self.len, 0);
+        self.len -= keep_from;
+        let row = Row { y, start: start as u16, end: end as u16 };
+        if self.len == self.recent.len() {
+            // Unreachable (rows are distinct and at most `reach` apart), kept panic-free.
+            self.recent.copy_within(1.., 0);
+            self.len -= 1;
+        }
+        self.recent[self.len] = row;
+        self.len += 1;
+        Some((row, &self.recent[..self.len - 1]))
+    }
+}
+
+/// For each event of `from` (in column order), the span of events of `to` within `s` columns
+/// of it: `(index in from, lo, hi)`. Both rows are sorted by column, so the span slides.
+fn spans(events: &[WindowEvent], from: Row, to: Row, s: u16) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+    let (mut lo, mut hi) = (usize::from(to.start), usize::from(to.start));
+    let end = usize::from(to.end);
+    (usize::from(from.start)..usize::from(from.end)).map(move |i| {
+        let x = events[i].x;
+        let (first, last) = (x.saturating_sub(s), x.saturating_add(s));
+        while lo < end && events[lo].x < first {
+            lo += 1;
+        }
+        hi = hi.max(lo);
+        while hi < end && events[hi].x <= last {
+            hi += 1;
+        }
+        (i, lo, hi)
+    })
+}
+
+/// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
+/// inline: a label per event and a range per cluster, `2N + 4C` bytes (the events
+/// themselves are the caller's).
+///
+/// `N` must be below 32 766 (checked at compile time).
 ///
 /// ```
 /// use evcal_core::{cluster::{Clusterer, ClusterConfig}, event::SensorSize, window::WindowEvent};
 /// let mut events = [WindowEvent { x: 10, y: 10, dt_us: 0 }; 12];
 /// events[11] = WindowEvent { x: 200, y: 100, dt_us: 5 };
-/// let mut c: Clusterer<16, 4, 64> = Clusterer::new();
+/// let mut c: Clusterer<16, 4> = Clusterer::new();
 /// let stats = c.cluster(&mut events, SensorSize::DAVIS346, &ClusterConfig::default());
 /// assert_eq!((stats.clusters, stats.noise), (1, 1));
 /// let ranges = c.group(&mut events);
@@ -190,41 +254,32 @@ impl Geometry {
 /// assert_eq!(ranges[0].end - ranges[0].start, 11);
 /// ```
 #[derive(Debug, Clone)]
-pub struct Clusterer<const N: usize, const C: usize, const B: usize> {
+pub struct Clusterer<const N: usize, const C: usize> {
     labels: [u16; N],
-    start: [u16; B],
-    next: [u16; B],
     ranges: [ClusterRange; C],
     len: usize,
     clusters: usize,
 }
 
-impl<const N: usize, const C: usize, const B: usize> Default for Clusterer<N, C, B> {
+impl<const N: usize, const C: usize> Default for Clusterer<N, C> {
     fn default() -> Self {
         Self::new()
     }
 }
 
-impl<const N: usize, const C: usize, const B: usize> Clusterer<N, C, B> {
-    const CHECK: () = assert!(N < 0x7FFE && B > 0 && B <= 0xFFFF && C < 0x7FFE, "capacity out of range");
+impl<const N: usize, const C: usize> Clusterer<N, C> {
+    const CHECK: () = assert!(N < 0x7FFE && C < 0x7FFE, "capacity out of range");
 
     /// An empty clusterer.
     pub const fn new() -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::CHECK;
-        Self {
-            labels: [0; N],
-            start: [0; B],
-            next: [0; B],
-            ranges: [ClusterRange { start: 0, end: 0 }; C],
-            len: 0,
-            clusters: 0,
-        }
+        Self { labels: [0; N], ranges: [ClusterRange { start: 0, end: 0 }; C], len: 0, clusters: 0 }
     }
 
     /// Clusters `events` (at most `N`; the rest are counted as overflow and left out).
-    /// Reorders `events` by hash bucket; [`labels`](Self::labels) then gives each event's
-    /// cluster (0-based), [`NOISE`] or [`DROPPED`].
+    /// Sorts `events` by pixel (row, column, then time); [`labels`](Self::labels) then gives
+    /// each event's cluster (0-based), [`NOISE`] or [`DROPPED`].
     pub fn cluster(&mut self, events: &mut [WindowEvent], sensor: SensorSize, cfg: &ClusterConfig) -> ClusterStats {
         let n = events.len().min(N);
         let mut stats =
@@ -233,57 +288,194 @@ impl<const N: usize, const C: usize, const B: usize> Clusterer<N, C, B> {
         self.len = n;
         self.clusters = 0;
         let duration = events.iter().map(|e| e.dt_us).max().unwrap_or(0);
-        let g = Geometry::new(sensor, cfg, duration);
-        self.sort_by_bucket(events, &g);
-
+        let m = Metric::new(sensor, cfg, duration);
+        events.sort_unstable_by_key(|e| (u64::from(pixel(e)) << 32) | u64::from(e.dt_us));
         let min_pts = usize::from(cfg.min_pts.max(1));
-        let mut checks: u32 = 0;
+        let mut work: u32 = 0;
+        if m.reach_y > MAX_REACH_ROWS as u64 {
+            self.pairwise(events, &m, min_pts, &mut stats, &mut work);
+        } else {
+            self.by_rows(events, &m, min_pts, &mut stats, &mut work);
+        }
+        for l in &mut self.labels[..n] {
+            *l &= MASK;
+        }
+        stats.distance_checks = work;
+        stats
+    }
 
-        // 1. Core points; every point starts as its own union-find root.
-        for i in 0..n {
-            let e = events[i];
-            let (bs, nb) = g.around::<B>(&e);
-            let mut count = 0usize;
-            'scan: for &b in &bs[..nb] {
-                let (s, t) = self.bucket_range(usize::from(b), n);
-                for other in &events[s..t] {
-                    checks = checks.wrapping_add(1);
-                    if g.neighbours(&e, other) {
-                        count += 1;
-                        if count >= min_pts {
-                            break 'scan;
-                        }
+    /// DBSCAN over pairs of neighbouring rows (see the module's documentation).
+    fn by_rows(
+        &mut self,
+        events: &[WindowEvent],
+        m: &Metric,
+        min_pts: usize,
+        stats: &mut ClusterStats,
+        work: &mut u32,
+    ) {
+        let n = events.len();
+        let reach = m.reach_y as usize;
+        let mut span = [0u16; MAX_REACH_ROWS + 1];
+        for (dy, s) in span.iter_mut().enumerate().take(reach + 1) {
+            *s = m.span(dy as u64).min(u64::from(u16::MAX)) as u16;
+        }
+        let near_t = |a: usize, b: usize| m.near_in_time(&events[a], &events[b]);
+        let spatial = m.dt_max.is_none();
+
+        // 1. Neighbour counts (in the labels for now), each pair of rows once.
+        self.labels[..n].fill(0);
+        let mut rows = Rows::new(reach);
+        while let Some((b, above)) = rows.next(events) {
+            for a in above.iter().chain(core::iter::once(&b)) {
+                let s = span[usize::from(b.y - a.y)];
+                for (i, lo, hi) in spans(events, b, *a, s) {
+                    *work = work.wrapping_add(1);
+                    let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
+                    self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
+                }
+                if a.y != b.y {
+                    for (i, lo, hi) in spans(events, *a, b, s) {
+                        let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
+                        self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
                     }
                 }
             }
-            self.labels[i] = i as u16 | if count >= min_pts { CORE } else { 0 };
+        }
+        for i in 0..n {
+            let core = usize::from(self.labels[i]) >= min_pts;
+            stats.core += u16::from(core);
+            self.labels[i] = i as u16 | if core { CORE } else { 0 };
         }
 
         // 2. Join core points that are neighbours. A root is always its component's lowest
         //    index, so the numbering below does not depend on the union order.
-        for i in 0..n {
-            if self.labels[i] & CORE == 0 {
-                continue;
-            }
-            stats.core += 1;
-            let e = events[i];
-            let (bs, nb) = g.around::<B>(&e);
-            for &b in &bs[..nb] {
-                let (s, t) = self.bucket_range(usize::from(b), n);
-                for j in s..t {
-                    if j >= i || self.labels[j] & CORE == 0 {
+        let mut rows = Rows::new(reach);
+        while let Some((b, above)) = rows.next(events) {
+            // Within the row: in a spatial run, each core point joins the next one to its
+            // right when they are neighbours; that chain and the links below join every pair.
+            if spatial {
+                let mut prev: Option<usize> = None;
+                for j in usize::from(b.start)..usize::from(b.end) {
+                    if self.labels[j] & CORE == 0 {
                         continue;
                     }
-                    checks = checks.wrapping_add(1);
-                    if g.neighbours(&e, &events[j]) {
-                        self.union(i, j);
+                    if let Some(p) = prev.filter(|&p| events[j].x - events[p].x <= span[0]) {
+                        self.union(p, j);
+                    }
+                    prev = Some(j);
+                }
+            } else {
+                for (i, _, hi) in spans(events, b, b, span[0]) {
+                    if self.labels[i] & CORE != 0 {
+                        for j in i + 1..hi {
+                            if self.labels[j] & CORE != 0 && near_t(i, j) {
+                                self.union(i, j);
+                            }
+                        }
+                    }
+                }
+            }
+            // With each row above: every event of a span is a neighbour. In a spatial run,
+            // joining the point to its span's first and last core points is enough: a span is
+            // at most twice the same-row reach wide, so at most one gap between consecutive
+            // core points in it exceeds that reach, and the row's chain joins each side of
+            // such a gap to an end.
+            for a in above {
+                let s = span[usize::from(b.y - a.y)];
+                for (i, lo, hi) in spans(events, b, *a, s) {
+                    *work = work.wrapping_add(1);
+                    if self.labels[i] & CORE == 0 {
+                        continue;
+                    }
+                    if spatial {
+                        if let Some(j) = (lo..hi).find(|&j| self.labels[j] & CORE != 0) {
+                            self.union(i, j);
+                            if let Some(k) = (j + 1..hi).rev().find(|&k| self.labels[k] & CORE != 0) {
+                                self.union(i, k);
+                            }
+                        }
+                    } else {
+                        for j in lo..hi {
+                            if self.labels[j] & CORE != 0 && near_t(i, j) {
+                                self.union(i, j);
+                            }
+                        }
                     }
                 }
             }
         }
 
-        // 3. Number the clusters in index order. A core point's parent has a lower index and
-        //    so already holds its component's label.
+        self.number(n, stats);
+
+        // 4. Border points join their lowest-index core neighbour's cluster; the rest is noise.
+        //    Each span's first core neighbour is its lowest; the lowest over all spans wins.
+        for l in &mut self.labels[..n] {
+            if *l & CORE == 0 {
+                *l = NONE;
+            }
+        }
+        let mut rows = Rows::new(reach);
+        while let Some((b, above)) = rows.next(events) {
+            for a in above.iter().chain(core::iter::once(&b)) {
+                let s = span[usize::from(b.y - a.y)];
+                let pairs = [(b, *a), (*a, b)];
+                let ways = if a.y == b.y { 1 } else { 2 };
+                for &(from, to) in &pairs[..ways] {
+                    for (i, lo, hi) in spans(events, from, to, s) {
+                        if self.labels[i] & CORE != 0 {
+                            continue;
+                        }
+                        *work = work.wrapping_add(1);
+                        let best = usize::from(self.labels[i]);
+                        if let Some(j) = (lo..hi.min(best)).find(|&j| self.labels[j] & CORE != 0 && near_t(i, j)) {
+                            self.labels[i] = j as u16;
+                        }
+                    }
+                }
+            }
+        }
+        self.settle_borders(n, stats);
+    }
+
+    /// DBSCAN by comparing every pair of events: for neighbourhoods too wide for the row sweep.
+    fn pairwise(
+        &mut self,
+        events: &[WindowEvent],
+        m: &Metric,
+        min_pts: usize,
+        stats: &mut ClusterStats,
+        work: &mut u32,
+    ) {
+        let n = events.len();
+        for i in 0..n {
+            *work = work.wrapping_add(n as u32);
+            let core = events.iter().filter(|o| m.neighbours(&events[i], o)).count() >= min_pts;
+            stats.core += u16::from(core);
+            self.labels[i] = i as u16 | if core { CORE } else { 0 };
+        }
+        for i in 0..n {
+            if self.labels[i] & CORE == 0 {
+                continue;
+            }
+            for j in i + 1..n {
+                if self.labels[j] & CORE != 0 && m.neighbours(&events[i], &events[j]) {
+                    self.union(i, j);
+                }
+            }
+        }
+        self.number(n, stats);
+        for i in 0..n {
+            if self.labels[i] & CORE == 0 {
+                let best = (0..n).find(|&j| self.labels[j] & CORE != 0 && m.neighbours(&events[i], &events[j]));
+                self.labels[i] = best.map_or(NONE, |j| j as u16);
+            }
+        }
+        self.settle_borders(n, stats);
+    }
+
+    /// 3. Numbers the clusters in index order. A core point's parent has a lower index and so
+    ///    already holds its component's label. Core labels become `cluster | CORE`.
+    fn number(&mut self, n: usize, stats: &mut ClusterStats) {
         let mut clusters: usize = 0;
         let mut found: usize = 0;
         for i in 0..n {
@@ -308,40 +500,24 @@ impl<const N: usize, const C: usize, const B: usize> Clusterer<N, C, B> {
         self.clusters = clusters;
         stats.clusters = clusters as u16;
         stats.dropped_clusters = (found - clusters).min(0xFFFF) as u16;
+    }
 
-        // 4. Border points join their lowest-index core neighbour's cluster; the rest is noise.
+    /// Turns each border point's best core neighbour (an index, or [`NONE`]) into that core
+    /// point's cluster, or noise.
+    fn settle_borders(&mut self, n: usize, stats: &mut ClusterStats) {
         for i in 0..n {
-            if self.labels[i] & CORE != 0 {
+            let l = self.labels[i];
+            if l & CORE != 0 {
                 continue;
             }
-            let e = events[i];
-            let (bs, nb) = g.around::<B>(&e);
-            let mut best: Option<usize> = None;
-            for &b in &bs[..nb] {
-                let (s, t) = self.bucket_range(usize::from(b), n);
-                for j in s..t {
-                    if self.labels[j] & CORE == 0 || best.is_some_and(|k| k < j) {
-                        continue;
-                    }
-                    checks = checks.wrapping_add(1);
-                    if g.neighbours(&e, &events[j]) {
-                        best = Some(j);
-                    }
-                }
-            }
-            self.labels[i] = match best {
-                Some(j) => self.labels[j] & MASK,
+            self.labels[i] = match self.labels.get(usize::from(l)).filter(|_| l != NONE) {
+                Some(&core) => core & MASK,
                 None => {
                     stats.noise += 1;
                     NOISE
                 }
             };
         }
-        for l in &mut self.labels[..n] {
-            *l &= MASK;
-        }
-        stats.distance_checks = checks;
-        stats
     }
 
     /// The label of each event of the last [`cluster`](Self::cluster) run, in the events'
@@ -410,10 +586,37 @@ impl<const N: usize, const C: usize, const B: usize> Clusterer<N, C, B> {
         &self.ranges[..k]
     }
 
-    fn bucket_range(&self, b: usize, n: usize) -> (usize, usize) {
-        let s = usize::from(self.start[b]);
-        let t = if b + 1 < B { usize::from(self.start[b + 1]) } else { n };
-        (s, t)
+    /// The clusters' ranges as the last [`group`](Self::group) or [`merge`](Self::merge) left
+    /// them.
+    pub fn ranges(&self) -> &[ClusterRange] {
+        &self.ranges[..self.clusters]
+    }
+
+    /// Merges clusters, then groups again: cluster `c` of the last grouping joins cluster
+    /// `into[c]` (`into[c] <= c`; chains are followed). The merged clusters are numbered in the
+    /// order of their first member and made contiguous as [`group`](Self::group) does;
+    /// returns their ranges. Entries beyond the current clusters are ignored.
+    pub fn merge(&mut self, events: &mut [WindowEvent], into: &[u16]) -> &[ClusterRange] {
+        let k = self.clusters;
+        // New number of each old cluster: roots get the next number, members their root's.
+        let mut renumber = [0u16; C];
+        let mut next = 0u16;
+        for c in 0..k {
+            let target = into.get(c).map_or(c, |&t| usize::from(t));
+            if target >= c {
+                renumber[c] = next;
+                next += 1;
+            } else {
+                renumber[c] = renumber[target];
+            }
+        }
+        for l in &mut self.labels[..self.len] {
+            if let Some(&r) = renumber.get(usize::from(*l)).filter(|_| usize::from(*l) < k) {
+                *l = r;
+            }
+        }
+        self.clusters = usize::from(next);
+        self.group(events)
     }
 
     fn find(&mut self, mut i: usize) -> usize {
@@ -438,39 +641,6 @@ impl<const N: usize, const C: usize, const B: usize> Clusterer<N, C, B> {
         let (lo, hi) = if ra < rb { (ra, rb) } else { (rb, ra) };
         self.labels[hi] = (self.labels[hi] & CORE) | lo as u16;
     }
-
-    /// Sorts events by bucket in place (American flag sort) and fills `start`.
-    fn sort_by_bucket(&mut self, events: &mut [WindowEvent], g: &Geometry) {
-        let n = events.len();
-        self.start = [0; B];
-        for e in events.iter() {
-            let (cx, cy) = g.cell(e);
-            let b = g.bucket::<B>(cx, cy);
-            self.start[b] += 1;
-        }
-        let mut acc = 0u16;
-        for b in 0..B {
-            let c = self.start[b];
-            self.start[b] = acc;
-            self.next[b] = acc;
-            acc += c;
-        }
-        for b in 0..B {
-            let end = if b + 1 < B { usize::from(self.start[b + 1]) } else { n };
-            while usize::from(self.next[b]) < end {
-                let i = usize::from(self.next[b]);
-                let (cx, cy) = g.cell(&events[i]);
-                let tb = g.bucket::<B>(cx, cy);
-                if tb == b {
-                    self.next[b] += 1;
-                } else {
-                    let j = usize::from(self.next[tb]);
-                    events.swap(i, j);
-                    self.next[tb] += 1;
-                }
-            }
-        }
-    }
 }
 
 #[cfg(test)]
@@ -486,24 +656,8 @@ mod test {
     fn brute_force(events: &[WindowEvent], sensor: SensorSize, cfg: &ClusterConfig) -> Vec<u16> {
         let n = events.len();
         let duration = events.iter().map(|e| e.dt_us).max().unwrap_or(0);
-        let w = f64::from(sensor.width.max(1));
-        let h = f64::from(sensor.height.max(1));
-        let near = |a: &WindowEvent, b: &WindowEvent| {
-            // Same arithmetic as the hashed version (f32), so that borderline pairs agree.
-            let dx = f32::from(a.x) - f32::from(b.x);
-            let dy = f32::from(a.y) - f32::from(b.y);
-            let sx = 1.0 / (w as f32 * w as f32);
-            let sy = 1.0 / (h as f32 * h as f32);
-            let spatial = dx * dx * sx + dy * dy * sy <= cfg.eps * cfg.eps;
-            let temporal = match cfg.eps_t {
-                None => true,
-                Some(et) => {
-                    let inv = if duration > 0 { 1.0 / duration as f32 } else { 0.0 };
-                    (a.dt_us.abs_diff(b.dt_us)) as f32 * inv <= et
-                }
-            };
-            spatial && temporal
-        };
+        let metric = Metric::new(sensor, cfg, duration);
+        let near = |a: &WindowEvent, b: &WindowEvent| metric.neighbours(a, b);
         let core: Vec<bool> =
             (0..n).map(|i| (0..n).filter(|&j| near(&events[i], &events[j])).count() >= cfg.min_pts as usize).collect();
         let mut comp = vec![u16::MAX; n];
@@ -550,13 +704,13 @@ mod test {
             .collect()
     }
 
-    fn check_equal<const N: usize, const C: usize, const B: usize>(
+    fn check_equal<const N: usize, const C: usize>(
         input: &[WindowEvent],
         sensor: SensorSize,
         cfg: &ClusterConfig,
     ) -> ClusterStats {
         let mut events = input.to_vec();
-        let mut c: Clusterer<N, C, B> = Clusterer::new();
+        let mut c: Clusterer<N, C> = Clusterer::new();
         let stats = c.cluster(&mut events, sensor, cfg);
         // Reordering is a permutation of the input.
         let mut a = input.to_vec();
@@ -579,7 +733,7 @@ mod test {
         let mut ev = ring(50.0, 60.0, 6.0, 80, 0, 1);
         ev.extend(ring(150.0, 60.0, 6.0, 80, 3, 2));
         ev.extend([WindowEvent { x: 300, y: 200, dt_us: 9 }, WindowEvent { x: 5, y: 250, dt_us: 11 }]);
-        let stats = check_equal::<256, 8, 64>(&ev, sensor, &ClusterConfig::default());
+        let stats = check_equal::<256, 8>(&ev, sensor, &ClusterConfig::default());
         assert_eq!((stats.clusters, stats.noise, stats.dropped_clusters), (2, 2, 0));
     }
 
@@ -591,11 +745,11 @@ mod test {
             // a dense 5 x 8 blob: one cluster each
             ev.extend((0..40u16).map(|i| WindowEvent { x: 30 + 60 * k + i % 5, y: 100 + i / 5, dt_us: u32::from(i) }));
         }
-        let stats = check_equal::<512, 3, 32>(&ev, sensor, &ClusterConfig::default());
+        let stats = check_equal::<512, 3>(&ev, sensor, &ClusterConfig::default());
         assert_eq!((stats.clusters, stats.dropped_clusters), (3, 2));
 
         let mut small = ev.clone();
-        let mut c: Clusterer<100, 8, 32> = Clusterer::new();
+        let mut c: Clusterer<100, 8> = Clusterer::new();
         let s = c.cluster(&mut small, sensor, &ClusterConfig::default());
         assert_eq!((s.events, s.overflow), (100, 100));
     }
@@ -607,10 +761,10 @@ mod test {
         // space-time.
         let mut ev = ring(100.0, 100.0, 5.0, 60, 0, 3);
         ev.extend(ring(100.0, 100.0, 5.0, 60, 30_000, 4));
-        let plain = check_equal::<256, 8, 64>(&ev, sensor, &ClusterConfig::default());
+        let plain = check_equal::<256, 8>(&ev, sensor, &ClusterConfig::default());
         assert_eq!(plain.clusters, 1);
         let st = ClusterConfig { eps_t: Some(0.1), ..Default::default() };
-        let split = check_equal::<256, 8, 64>(&ev, sensor, &st);
+        let split = check_equal::<256, 8>(&ev, sensor, &st);
         assert_eq!(split.clusters, 2);
     }
 
@@ -621,7 +775,7 @@ mod test {
         ev.extend(ring(150.0, 160.0, 8.0, 90, 0, 6));
         ev.extend(ring(250.0, 60.0, 4.0, 50, 0, 7));
         ev.push(WindowEvent { x: 340, y: 5, dt_us: 0 });
-        let mut c: Clusterer<512, 8, 64> = Clusterer::new();
+        let mut c: Clusterer<512, 8> = Clusterer::new();
         let stats = c.cluster(&mut ev, sensor, &ClusterConfig::default());
         let labels_before: Vec<u16> = c.labels().to_vec();
         let ranges = c.group(&mut ev).to_vec();
@@ -666,22 +820,33 @@ mod test {
         #![proptest_config(ProptestConfig::with_cases(200))]
 
         #[test]
-        fn hashed_equals_brute_force(
+        fn wide_neighbourhoods_equal_brute_force(
+            ev in arb_events(150, 346, 260),
+            eps in 0.12f32..0.6,
+            min_pts in 1u16..30,
+            st in prop::option::of(0.01f32..0.5),
+        ) {
+            let cfg = ClusterConfig { eps, min_pts, eps_t: st };
+            check_equal::<150, 16>(&ev, SensorSize::DAVIS346, &cfg);
+        }
+
+        #[test]
+        fn sweep_equals_brute_force(
             ev in arb_events(400, 346, 260),
             eps in 0.005f32..0.05,
             min_pts in 1u16..15,
             st in prop::option::of(0.01f32..0.5),
         ) {
             let cfg = ClusterConfig { eps, min_pts, eps_t: st };
-            // Few buckets force collisions between far cells, many buckets avoid them.
-            check_equal::<400, 16, 7>(&ev, SensorSize::DAVIS346, &cfg);
-            check_equal::<400, 64, 1024>(&ev, SensorSize::DAVIS346, &cfg);
+            // Few cluster slots force dropped clusters; more keep them all.
+            check_equal::<400, 16>(&ev, SensorSize::DAVIS346, &cfg);
+            check_equal::<400, 64>(&ev, SensorSize::DAVIS346, &cfg);
         }
 
         #[test]
-        fn hashed_equals_brute_force_large_sensor(ev in arb_events(300, 1280, 720), min_pts in 1u16..12) {
+        fn sweep_equals_brute_force_large_sensor(ev in arb_events(300, 1280, 720), min_pts in 1u16..12) {
             let cfg = ClusterConfig { min_pts, ..Default::default() };
-            check_equal::<300, 64, 256>(&ev, SensorSize::new(1280, 720), &cfg);
+            check_equal::<300, 64>(&ev, SensorSize::new(1280, 720), &cfg);
         }
 
         #[test]
@@ -691,7 +856,7 @@ mod test {
             eps in any::<f32>(), min_pts in any::<u16>(), st in prop::option::of(any::<f32>()),
         ) {
             let mut ev: Vec<WindowEvent> = raw.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
-            let mut c: Clusterer<256, 8, 16> = Clusterer::new();
+            let mut c: Clusterer<256, 8> = Clusterer::new();
             let stats = c.cluster(&mut ev, SensorSize::new(w, h), &ClusterConfig { eps, min_pts, eps_t: st });
             prop_assert_eq!(usize::from(stats.events) + usize::from(stats.overflow), ev.len());
             let ranges = c.group(&mut ev).to_vec();

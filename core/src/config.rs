@@ -23,11 +23,8 @@ pub const MAX_EVENTS_PER_WINDOW: usize = 4000;
 /// as dropped.
 pub const MAX_CLUSTERS: usize = 96;
 
-/// Default number of buckets of the spatial hash used by clustering. A power of two.
-pub const HASH_BUCKETS: usize = 1024;
-
 /// Default fewest events a cluster needs to be fitted; smaller clusters are skipped.
 pub const DEFAULT_MIN_CLUSTER_EVENTS: u16 = 20;
 
 /// Default most Levenberg–Marquardt iterations of one eRWLS fit.
-pub const DEFAULT_MAX_ITERATIONS: u8 = 20;
+pub const DEFAULT_MAX_ITERATIONS: u8 = 8;

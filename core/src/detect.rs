@@ -6,9 +6,9 @@
 
 use crate::{
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
-    config::{HASH_BUCKETS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     event::{Event, InputFilter, InputStats, SensorSize},
-    fit::{fit, Centre, FitConfig},
+    fit::{fit, same_circle, Centre, FitConfig},
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
 
@@ -85,23 +85,19 @@ impl Clock for () {
     }
 }
 
-/// The detection pipeline for windows of at most `N` events, at most `C` clusters per
-/// window, and a spatial hash of `B` buckets.
+/// The detection pipeline for windows of at most `N` events and at most `C` clusters per
+/// window.
 #[derive(Debug, Clone)]
-pub struct Detector<
-    const N: usize = MAX_EVENTS_PER_WINDOW,
-    const C: usize = MAX_CLUSTERS,
-    const B: usize = HASH_BUCKETS,
-> {
+pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX_CLUSTERS> {
     cfg: DetectConfig,
     filter: InputFilter,
     windower: Windower<N>,
-    clusterer: Clusterer<N, C, B>,
+    clusterer: Clusterer<N, C>,
     out: Detection<C>,
     ready: bool,
 }
 
-impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
+impl<const N: usize, const C: usize> Detector<N, C> {
     /// A detector with the given configuration (events per window clamped to `1..=N`).
     pub const fn new(cfg: DetectConfig) -> Self {
         Self {
@@ -110,7 +106,7 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
             windower: Windower::new(cfg.window),
             clusterer: Clusterer::new(),
             out: Detection {
-                info: WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
+                info: WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
                 stats: WindowStats {
                     events: 0,
                     noise: 0,
@@ -209,8 +205,8 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
 /// trailing, with a gap where the edge slides along its own tangent. DBSCAN then often keeps
 /// the crescents apart. Clusters whose first fits describe the same circle (centres within
 /// half a radius, radii within a third) are therefore joined and fitted again as one.
-pub fn process<const N: usize, const C: usize, const B: usize>(
-    clusterer: &mut Clusterer<N, C, B>,
+pub fn process<const N: usize, const C: usize>(
+    clusterer: &mut Clusterer<N, C>,
     events: &mut [WindowEvent],
     cfg: &DetectConfig,
     out: &mut Detection<C>,
@@ -218,23 +214,20 @@ pub fn process<const N: usize, const C: usize, const B: usize>(
 ) {
     let t0 = clock.now();
     let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
+    let merged = join_crescents(clusterer, events);
     let mut ranges: heapless::Vec<ClusterRange, C> = heapless::Vec::new();
-    for r in clusterer.group(events) {
+    for r in clusterer.ranges() {
         // The clusterer holds at most C clusters: a push cannot fail.
         let _ = ranges.push(*r);
     }
     let t1 = clock.now();
-    let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
-    for r in &ranges {
-        let _ = fits.push(fit(slice(events, r), &cfg.fit));
-    }
-    let merged = merge_crescents(events, &mut ranges, &mut fits, &cfg.fit);
+    let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
     let mut rejected = 0u16;
     out.centres.clear();
-    for f in &fits {
-        match f {
+    for r in &ranges {
+        match fit(slice(events, r), t_ref, &cfg.fit) {
             Some(c) => {
-                let _ = out.centres.push(*c);
+                let _ = out.centres.push(c);
             }
             None => rejected += 1,
         }
@@ -258,60 +251,51 @@ fn slice<'a>(events: &'a [WindowEvent], r: &ClusterRange) -> &'a [WindowEvent] {
     events.get(usize::from(r.start)..usize::from(r.end)).unwrap_or(&[])
 }
 
-/// Whether two fits describe one circle.
-fn same_circle(a: &Centre, b: &Centre) -> bool {
-    let (r_small, r_big) = if a.r < b.r { (a.r, b.r) } else { (b.r, a.r) };
-    let (du, dv) = (a.u - b.u, a.v - b.v);
-    du * du + dv * dv <= 0.25 * r_small * r_small && r_big - r_small <= r_big * (1.0 / 3.0)
-}
-
-/// Joins clusters that fit the same circle (see [`process`]), moving the events of the later
-/// cluster next to the earlier one, and refits the union. Returns how many were joined.
-fn merge_crescents<const C: usize>(
-    events: &mut [WindowEvent],
-    ranges: &mut heapless::Vec<ClusterRange, C>,
-    fits: &mut heapless::Vec<Option<Centre>, C>,
-    cfg: &FitConfig,
-) -> u16 {
+/// Joins clusters whose events lie on one circle (the crescents of a circle that DBSCAN
+/// keeps apart, see [`process`]) and leaves the events grouped by the joined clusters.
+/// Candidates are pairs whose bounding boxes are no further apart than the larger box is
+/// wide; [`same_circle`] decides. Returns how many clusters were joined to another.
+fn join_crescents<const N: usize, const C: usize>(clusterer: &mut Clusterer<N, C>, events: &mut [WindowEvent]) -> u16 {
+    let mut boxes: heapless::Vec<[u16; 4], C> = heapless::Vec::new();
+    for r in clusterer.group(events) {
+        let b = slice(events, r)
+            .iter()
+            .fold([u16::MAX, u16::MAX, 0, 0], |b, e| [b[0].min(e.x), b[1].min(e.y), b[2].max(e.x), b[3].max(e.y)]);
+        let _ = boxes.push(b);
+    }
+    let ranges: heapless::Vec<ClusterRange, C> = clusterer.ranges().iter().copied().collect();
+    let k = ranges.len();
+    // Union-find over clusters, each root the lowest index of its set.
+    let mut into = [0u16; C];
+    for (c, slot) in into.iter_mut().enumerate() {
+        *slot = c as u16;
+    }
+    let root = |into: &[u16; C], mut c: usize| {
+        while usize::from(into[c]) != c {
+            c = usize::from(into[c]);
+        }
+        c
+    };
     let mut merged = 0u16;
-    let mut i = 0;
-    while i < ranges.len() {
-        let mut j = i + 1;
-        let mut grew = false;
-        while j < ranges.len() {
-            let same = match (fits.get(i).copied().flatten(), fits.get(j).copied().flatten()) {
-                (Some(a), Some(b)) => same_circle(&a, &b),
-                _ => false,
-            };
-            if !same {
-                j += 1;
+    for i in 0..k {
+        for j in i + 1..k {
+            let (a, b) = (boxes[i], boxes[j]);
+            let gap = a[0].max(b[0]).saturating_sub(a[2].min(b[2])).max(a[1].max(b[1]).saturating_sub(a[3].min(b[3])));
+            let size = (a[2] - a[0]).max(a[3] - a[1]).max(b[2] - b[0]).max(b[3] - b[1]);
+            if gap > size {
                 continue;
             }
-            // Ranges are in event order: rotate j's events to just after i's.
-            let (ri, rj) = (ranges[i], ranges[j]);
-            let len_j = rj.end - rj.start;
-            if let Some(seg) = events.get_mut(usize::from(ri.end)..usize::from(rj.end)) {
-                seg.rotate_right(usize::from(len_j));
+            let (ri, rj) = (root(&into, i), root(&into, j));
+            if ri == rj || !same_circle(slice(events, &ranges[i]), slice(events, &ranges[j])) {
+                continue;
             }
-            for r in ranges.iter_mut().take(j).skip(i + 1) {
-                r.start += len_j;
-                r.end += len_j;
-            }
-            ranges[i].end += len_j;
-            ranges.remove(j);
-            fits.remove(j);
+            let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
+            into[hi] = lo as u16;
             merged += 1;
-            grew = true;
         }
-        if grew {
-            let union = fit(slice(events, &ranges[i]), cfg);
-            fits[i] = union;
-            // The union's better fit may now match clusters passed over before.
-            if union.is_some() {
-                continue;
-            }
-        }
-        i += 1;
+    }
+    if merged > 0 {
+        clusterer.merge(events, &into[..k]);
     }
     merged
 }

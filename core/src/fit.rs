@@ -82,7 +82,7 @@ pub struct Centre {
 /// Smallest σ of the weights, pixels. Events sit on a pixel grid whose rounding alone spreads
 /// them uniformly by ±0.5 px; weights much narrower than that select events by rounding luck
 /// and pull the centre towards wherever the rounding happened to agree with the current fit.
-const MIN_SIGMA: f32 = 0.3;
+const MIN_SIGMA: f32 = 0.7;
 /// Width of the weighting Gaussian in units of the inliers' own spread. Measured on the unit
 /// tests' cylinders (2000 clean events; 300 with 15 % scattered noise and a clump of 40 beside
 /// the edge), RMS centre error: at 1.0, 0.056 px clean (plain least squares 0.038); at 1.5,
@@ -93,8 +93,6 @@ const KERNEL_WIDTH: f32 = 1.5;
 const MAX_WEIGHT_EXPONENT: f32 = 18.0;
 /// A fit has converged when an accepted step moves the centre and radius less than this, px.
 const STEP_TOLERANCE: f32 = 1e-3;
-/// Levenberg–Marquardt damping beyond which no step can lower the cost any more.
-const MAX_DAMPING: f32 = 1e6;
 /// Histogram of absolute residuals for the robust scale: bin width (px) and count.
 const HIST_BIN: f32 = 0.125;
 const HIST_BINS: usize = 64;
@@ -104,17 +102,17 @@ const HIST_BINS: usize = 64;
 /// (a line, a point) or the fit lands somewhere no circle of these events can be.
 ///
 /// Cost: a few passes over the events per iteration, no allocation, no recursion.
-pub fn fit(events: &[WindowEvent], cfg: &FitConfig) -> Option<Centre> {
+pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
     let n = events.len();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
     }
-    let frame = Frame::of(events);
+    let frame = Frame::of(&[events]);
     let result = match cfg.method {
         FitMethod::Centroid => centroid(events, &frame),
         FitMethod::Ols | FitMethod::Erwls => cylinder(events, &frame, cfg),
     }?;
-    frame.accept(result, n as u16)
+    frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
 }
 
 /// Local coordinates: pixels relative to the cluster's bounding-box centre and time in
@@ -140,11 +138,12 @@ struct Local {
 }
 
 impl Frame {
-    fn of(events: &[WindowEvent]) -> Self {
+    fn of(parts: &[&[WindowEvent]]) -> Self {
         let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (u16::MAX, 0u16, u16::MAX, 0u16);
         let mut t_sum = 0u64;
+        let mut count = 0u64;
         let (mut t_lo, mut t_hi) = (u32::MAX, 0u32);
-        for e in events {
+        for e in parts.iter().flat_map(|p| p.iter()) {
             t_lo = t_lo.min(e.dt_us);
             t_hi = t_hi.max(e.dt_us);
             x_lo = x_lo.min(e.x);
@@ -152,8 +151,9 @@ impl Frame {
             y_lo = y_lo.min(e.y);
             y_hi = y_hi.max(e.y);
             t_sum += u64::from(e.dt_us);
+            count += 1;
         }
-        let t_mean_us = t_sum / events.len().max(1) as u64;
+        let t_mean_us = t_sum / count.max(1);
         let tc = t_mean_us as f32 * 1e-3;
         Self {
             // Halves of integers: exact in f32.
@@ -173,10 +173,10 @@ impl Frame {
 
     /// Back to sensor pixels at `t_ref`, after the checks that keep arcs of straight edges
     /// and runaway fits out.
-    fn accept(&self, l: Local, n: u16) -> Option<Centre> {
+    fn accept(&self, l: Local, n: u16, t_ref_ms: f32) -> Option<Centre> {
         let [u, v, a, b, r] = l.p;
-        let u_ref = self.x0 + u - a * self.tc;
-        let v_ref = self.y0 + v - b * self.tc;
+        let u_ref = self.x0 + u + a * (t_ref_ms - self.tc);
+        let v_ref = self.y0 + v + b * (t_ref_ms - self.tc);
         let finite = [u_ref, v_ref, a, b, r, l.spread].iter().all(|q| q.is_finite());
         // A circle larger than the cluster's whole extent is a fit to a nearly straight
         // edge; a centre beyond one radius outside the box belongs to no circle of these events.
@@ -220,20 +220,14 @@ fn centroid(events: &[WindowEvent], f: &Frame) -> Option<Local> {
 
 /// Kåsa's algebraic circle fit extended to a moving circle: least squares of
 /// `x² + y² + Dx + Ey + Gτx + Hτy + F + Iτ = 0`, linear in its six unknowns, over the events
-/// within `gate` of the circle `around` (all events when it is `None`). It drops the tiny
-/// `(a² + b²)τ²` term of the exact model, so it is a start, not an answer, but a closed-form
-/// one that needs no start itself. Returns `[u, v, a, b, r]` and the events used.
-fn kasa(events: &[WindowEvent], f: &Frame, around: Option<(&[f32; 5], f32)>) -> Option<([f32; 5], u32)> {
+/// of `parts`. It drops the tiny `(a² + b²)τ²` term of the exact model, so it is a start, not
+/// an answer, but a closed-form one that needs no start itself. Returns `[u, v, a, b, r]`.
+fn kasa(parts: &[&[WindowEvent]], f: &Frame) -> Option<[f32; 5]> {
     let mut m = [[0.0f32; 6]; 6];
     let mut rhs = [0.0f32; 6];
     let mut used = 0u32;
-    for e in events {
+    for e in parts.iter().flat_map(|p| p.iter()) {
         let (x, y, t) = f.local(e);
-        if let Some((p, gate)) = around {
-            if residual(p, x, y, t).abs() > gate {
-                continue;
-            }
-        }
         used += 1;
         let z = x * x + y * y;
         let row = [x, y, t * x, t * y, 1.0, t];
@@ -256,31 +250,52 @@ fn kasa(events: &[WindowEvent], f: &Frame, around: Option<(&[f32; 5], f32)>) -> 
     let s = solve_spd::<6>(m, rhs)?;
     let (u, v) = (-0.5 * s[0], -0.5 * s[1]);
     let r2 = u * u + v * v - s[4];
-    (r2 > 0.0 && r2.is_finite()).then(|| ([u, v, -0.5 * s[2], -0.5 * s[3], libm::sqrtf(r2)], used))
+    (r2 > 0.0 && r2.is_finite()).then(|| [u, v, -0.5 * s[2], -0.5 * s[3], libm::sqrtf(r2)])
 }
 
-/// Rounds of trimming the algebraic start: each refits on the events within this many σ
-/// (from the median absolute residual) of the previous fit.
-const TRIM_ROUNDS: usize = 3;
-const TRIM_SIGMAS: f32 = 2.5;
+/// Largest RMS distance, px, of two clusters' events from the circle fitted to their union for
+/// [`same_circle`] to join them: the edge's own spread (about half a pixel) and the
+/// algebraic fit's looseness, with room to spare, but well below what two neighbouring
+/// circles or a circle and clutter leave.
+const JOIN_MAX_RMS: f32 = 1.0;
 
-/// The robust closed-form start: the moving-circle Kåsa fit on all events, then refitted
-/// [`TRIM_ROUNDS`] times on the events near the previous fit, so that noise and clutter in the
-/// cluster lose their pull before the iterations begin. Also returns the first kernel σ.
-fn initial(events: &[WindowEvent], f: &Frame) -> Option<([f32; 5], f32)> {
-    let (mut p, _) = kasa(events, f, None)?;
-    let mut mad = median_abs_residual(events, f, &p);
-    for _ in 0..TRIM_ROUNDS {
-        let gate = (TRIM_SIGMAS * 1.4826 * mad).max(2.0 * MIN_SIGMA);
-        match kasa(events, f, Some((&p, gate))) {
-            // Trimming must keep the bulk of the events, or it has locked onto something else.
-            Some((q, used)) if used as usize * 2 >= events.len() => p = q,
-            _ => break,
-        }
-        mad = median_abs_residual(events, f, &p);
+/// Whether the events of `a` and `b` lie on one moving circle: the moving-circle Kåsa fit of
+/// their union leaves each of them within [`JOIN_MAX_RMS`] of it, and the circle is no larger
+/// than the union's extent. Used to join the crescents of one circle that DBSCAN keeps apart
+/// (see [`crate::detect::process`]). Two passes over the events, no allocation.
+pub fn same_circle(a: &[WindowEvent], b: &[WindowEvent]) -> bool {
+    if a.is_empty() || b.is_empty() || a.len() + b.len() > usize::from(u16::MAX) {
+        return false;
     }
-    Some((p, kernel(mad)))
+    let f = Frame::of(&[a, b]);
+    let Some(p) = kasa(&[a, b], &f) else { return false };
+    let extent = 2.0 * f.half_w.max(f.half_h) + 1.0;
+    if !(p[4] > 0.5 && p[4] <= extent) {
+        return false;
+    }
+    let rms = |part: &[WindowEvent]| {
+        let sq: f32 = part
+            .iter()
+            .map(|e| {
+                let (x, y, t) = f.local(e);
+                let r = residual(&p, x, y, t);
+                r * r
+            })
+            .sum();
+        libm::sqrtf(sq / part.len() as f32)
+    };
+    rms(a) <= JOIN_MAX_RMS && rms(b) <= JOIN_MAX_RMS
 }
+
+/// Fewest events for the cylinder's tilt (the circle's velocity) to be fitted. A window
+/// covers a fraction of a pixel of motion, so the velocity of a small cluster is mostly noise;
+/// and since the centre is given at the window's middle, close to every cluster's mean time,
+/// a circle taken as still costs little.
+const TILT_MIN_EVENTS: usize = 48;
+/// A step that moves the centre by more than this fraction of the radius is shortened to it:
+/// Gauss–Newton from the algebraic start is well behaved, but a wild step on a degenerate
+/// cluster must not throw the fit somewhere it cannot come back from.
+const MAX_STEP_FRACTION: f32 = 0.25;
 
 #[inline]
 fn residual(p: &[f32; 5], x: f32, y: f32, t: f32) -> f32 {
@@ -292,26 +307,48 @@ fn kernel(mad: f32) -> f32 {
     KERNEL_WIDTH * (1.4826 * mad).max(MIN_SIGMA)
 }
 
-/// Median of |ξ| at parameters `p`, from a histogram (no sort, no buffer), interpolated
-/// within its bin; the last bin collects everything beyond the histogram.
+/// Histogram of absolute residuals, for their median without a sort or a buffer.
+struct Histogram {
+    bins: [u16; HIST_BINS],
+    count: u32,
+}
+
+impl Histogram {
+    const fn new() -> Self {
+        Self { bins: [0; HIST_BINS], count: 0 }
+    }
+
+    #[inline]
+    fn add(&mut self, abs_residual: f32) {
+        // The last bin collects everything beyond the histogram (a NaN casts to bin 0).
+        let k = ((abs_residual * (1.0 / HIST_BIN)) as usize).min(HIST_BINS - 1);
+        self.bins[k] = self.bins[k].saturating_add(1);
+        self.count += 1;
+    }
+
+    /// The median, interpolated within its bin.
+    fn median(&self) -> f32 {
+        let half = self.count as f32 * 0.5;
+        let mut acc = 0.0f32;
+        for (k, &c) in self.bins.iter().enumerate() {
+            let c = f32::from(c);
+            if acc + c >= half && c > 0.0 {
+                return (k as f32 + (half - acc) / c) * HIST_BIN;
+            }
+            acc += c;
+        }
+        HIST_BINS as f32 * HIST_BIN
+    }
+}
+
+/// Median of |ξ| at parameters `p`.
 fn median_abs_residual(events: &[WindowEvent], f: &Frame, p: &[f32; 5]) -> f32 {
-    let mut hist = [0u16; HIST_BINS];
+    let mut h = Histogram::new();
     for e in events {
         let (x, y, t) = f.local(e);
-        let k = (residual(p, x, y, t).abs() * (1.0 / HIST_BIN)) as usize;
-        let k = k.min(HIST_BINS - 1);
-        hist[k] = hist[k].saturating_add(1);
+        h.add(residual(p, x, y, t).abs());
     }
-    let half = events.len() as f32 * 0.5;
-    let mut acc = 0.0f32;
-    for (k, &c) in hist.iter().enumerate() {
-        let c = f32::from(c);
-        if acc + c >= half && c > 0.0 {
-            return (k as f32 + (half - acc) / c) * HIST_BIN;
-        }
-        acc += c;
-    }
-    HIST_BINS as f32 * HIST_BIN
+    h.median()
 }
 
 #[inline]
@@ -342,172 +379,114 @@ impl Weights {
     }
 }
 
-/// Weighted sums of one pass.
-#[derive(Default)]
-struct Moments {
+/// What one pass over the events at parameters `p` gives: the weighted normal equations
+/// `JᵀWJ` (lower triangle) and `JᵀWξ`, the weighted sums for the spread, and the histogram
+/// of |ξ| for the next kernel width.
+struct Pass {
+    a: [[f32; 5]; 5],
+    g: [f32; 5],
     sw: f32,
-    swe: f32,
     swe2: f32,
+    hist: Histogram,
 }
 
-/// One pass over the events at parameters `p`: the weighted cost and moments, and (if asked)
-/// the normal equations `JᵀWJ` (lower triangle) and `JᵀWξ`.
-fn pass(
-    events: &[WindowEvent],
-    f: &Frame,
-    p: &[f32; 5],
-    w: &Weights,
-    normal: bool,
-) -> (Moments, [[f32; 5]; 5], [f32; 5]) {
-    let mut m = Moments::default();
-    let mut a = [[0.0f32; 5]; 5];
-    let mut g = [0.0f32; 5];
+// The normal equations read best as the index loops of their definition.
+#[allow(clippy::needless_range_loop)]
+fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
+    let mut out = Pass { a: [[0.0; 5]; 5], g: [0.0; 5], sw: 0.0, swe2: 0.0, hist: Histogram::new() };
     let [u, v, va, vb, r] = *p;
     for e in events {
         let (x, y, t) = f.local(e);
         let dx = x - u - va * t;
         let dy = y - v - vb * t;
         let d = dist(dx, dy);
+        let xi = d - r;
+        out.hist.add(xi.abs());
         if d <= 0.0 {
             continue; // on the axis: no direction, no information about the centre
         }
-        let xi = d - r;
         let wi = w.of(xi);
         if wi == 0.0 {
             continue;
         }
-        let we = wi * xi;
-        m.sw += wi;
-        m.swe += we;
-        m.swe2 += we * xi;
-        if normal {
-            let (cx, cy) = (dx / d, dy / d);
-            // ∂ξ/∂(u, v, a, b, r)
-            let j = [-cx, -cy, -cx * t, -cy * t, -1.0];
-            for i in 0..5 {
-                let wj = wi * j[i];
-                for k in 0..=i {
-                    a[i][k] += wj * j[k];
-                }
-                g[i] += wj * xi;
+        out.sw += wi;
+        out.swe2 += wi * xi * xi;
+        let (cx, cy) = (dx / d, dy / d);
+        // ∂ξ/∂(u, v, a, b, r)
+        let j = [-cx, -cy, -cx * t, -cy * t, -1.0];
+        for i in 0..5 {
+            let wj = wi * j[i];
+            for k in 0..=i {
+                out.a[i][k] += wj * j[k];
             }
+            out.g[i] += wj * xi;
         }
     }
-    (m, a, g)
+    out
 }
 
-/// The slanted-cylinder fit with model selection on the tilt. A window covers so little
-/// motion (well under a pixel for 4000 events) that a free velocity often fits noise, and
-/// extrapolating that velocity back to `t_ref` costs more than it gains: in simulation
-/// (4x11 grid, DAVIS346, cone), a free tilt doubled the centre error of a right cylinder.
-/// So the right cylinder is fitted first, then the tilt is freed, and the tilted fit is kept
-/// only if it lowers the weighted cost by more than the Bayesian information criterion asks
-/// of two more parameters (`2·ln n` in units of the residual variance).
+/// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
+/// (one pass over the events per iteration: weights from the residuals at the current
+/// parameters, the weighted normal equations, one step). The kernel width follows the
+/// residuals' median (one iteration behind, from the same pass). The tilt is fitted only for
+/// clusters of at least [`TILT_MIN_EVENTS`].
 fn cylinder(events: &[WindowEvent], f: &Frame, cfg: &FitConfig) -> Option<Local> {
-    let (mut p, sigma0) = initial(events, f)?;
-    // The closed-form start's tilt seeds the second stage.
-    let tilt = [p[2], p[3]];
-    p[2] = 0.0;
-    p[3] = 0.0;
-    let still = refine(events, f, cfg, p, sigma0, false);
-    let mut q = still.0.p;
-    q[2] = tilt[0];
-    q[3] = tilt[1];
-    let moving = refine(events, f, cfg, q, still.1, true);
-    // Compare both at the weights the right cylinder ended with, so the costs are alike.
-    let w = Weights { reweight: cfg.method == FitMethod::Erwls, sigma: still.1 };
-    let (ms, _, _) = pass(events, f, &still.0.p, &w, false);
-    let (mm, _, _) = pass(events, f, &moving.0.p, &w, false);
-    let variance = ms.swe2 / ms.sw.max(1.0);
-    let penalty = 2.0 * libm::logf(ms.sw.max(2.0)) * variance;
-    if moving.0.spread.is_finite() && ms.swe2 - mm.swe2 > penalty {
-        Some(moving.0)
-    } else {
-        Some(still.0)
+    let mut p = kasa(&[events], f)?;
+    let tilt = events.len() >= TILT_MIN_EVENTS && f.t_reach > 0.0;
+    if !tilt {
+        p[2] = 0.0;
+        p[3] = 0.0;
     }
-}
-
-/// Levenberg–Marquardt from `p` with kernel width `sigma0`; the tilt is held at its start
-/// unless `tilt` is set. Returns the fit and the final kernel width.
-fn refine(
-    events: &[WindowEvent],
-    f: &Frame,
-    cfg: &FitConfig,
-    mut p: [f32; 5],
-    sigma0: f32,
-    tilt: bool,
-) -> (Local, f32) {
-    let mut w = Weights { reweight: cfg.method == FitMethod::Erwls, sigma: sigma0 };
-    let mut lambda = 1e-3f32;
+    let reweight = cfg.method == FitMethod::Erwls;
+    let mut w = Weights { reweight, sigma: kernel(median_abs_residual(events, f, &p)) };
     let mut converged = false;
-    let (mut m, mut a, mut g) = pass(events, f, &p, &w, true);
-    let mut cost = m.swe2;
-    let mut iterations = 0u8;
-    while iterations < cfg.max_iterations {
-        iterations += 1;
-        let mut damped = a;
-        // Marquardt's scaling, with a floor so that a velocity the window cannot observe
-        // (all events at one instant) is held at zero rather than making the system singular.
-        let floor = 1e-6 * a[4][4].max(1.0);
-        for (i, row) in damped.iter_mut().enumerate() {
-            row[i] += lambda * a[i][i].max(floor) + floor * 1e-3;
+    let mut spread = f32::INFINITY;
+    for _ in 0..cfg.max_iterations {
+        let ps = pass(events, f, &p, &w);
+        if ps.sw > 0.0 {
+            spread = libm::sqrtf(ps.swe2 / ps.sw);
         }
+        // A small Marquardt damping, with a floor, keeps a velocity the window cannot observe
+        // at zero rather than making the system singular.
+        let mut a = ps.a;
+        let floor = 1e-6 * a[4][4].max(1.0);
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] += 1e-4 * ps.a[i][i] + floor;
+        }
+        let mut rhs = ps.g.map(|x| -x);
         if !tilt {
             // Decouple the tilt: unit diagonal, no coupling, zero gradient → zero step.
             for k in [2, 3] {
-                for (c, row) in damped.iter_mut().enumerate() {
+                for (c, row) in a.iter_mut().enumerate() {
                     if c > k {
                         row[k] = 0.0;
                     }
                 }
-                damped[k] = [0.0; 5];
-                damped[k][k] = 1.0;
+                a[k] = [0.0; 5];
+                a[k][k] = 1.0;
+                rhs[k] = 0.0;
             }
         }
-        let mut rhs = g.map(|x| -x);
-        if !tilt {
-            rhs[2] = 0.0;
-            rhs[3] = 0.0;
+        let Some(mut step) = solve_spd::<5>(a, rhs) else { break };
+        let moved = libm::sqrtf(step[0] * step[0] + step[1] * step[1]);
+        let limit = MAX_STEP_FRACTION * p[4].abs().max(1.0);
+        if moved > limit || !moved.is_finite() {
+            let shrink = if moved.is_finite() { limit / moved } else { 0.0 };
+            step = step.map(|s| s * shrink);
         }
-        let Some(step) = solve_spd::<5>(damped, rhs) else {
-            lambda *= 10.0;
-            if lambda > MAX_DAMPING {
-                break;
-            }
-            continue;
-        };
-        let mut trial = p;
-        for (q, s) in trial.iter_mut().zip(step) {
+        for (q, s) in p.iter_mut().zip(step) {
             *q += s;
         }
-        let (tm, _, _) = pass(events, f, &trial, &w, false);
-        if tm.swe2.is_finite() && tm.swe2 <= cost {
-            p = trial;
-            lambda = (lambda * 0.3).max(1e-7);
-            let moved = step[0].abs().max(step[1].abs()).max(step[4].abs());
-            let tilted = (step[2].abs().max(step[3].abs())) * f.t_reach;
-            let small = moved.max(tilted) < STEP_TOLERANCE;
-            // New weights from the accepted point, then the system there.
-            if w.reweight {
-                w.sigma = kernel(median_abs_residual(events, f, &p));
-            }
-            (m, a, g) = pass(events, f, &p, &w, true);
-            cost = m.swe2;
-            if small {
-                converged = true;
-                break;
-            }
-        } else {
-            lambda *= 10.0;
-            if lambda > MAX_DAMPING {
-                // No direction lowers the cost: a minimum to the precision f32 has.
-                converged = true;
-                break;
-            }
+        if reweight {
+            w.sigma = kernel(ps.hist.median());
+        }
+        let tilted = step[2].abs().max(step[3].abs()) * f.t_reach;
+        if moved.max(step[4].abs()).max(tilted) < STEP_TOLERANCE {
+            converged = true;
+            break;
         }
     }
-    let spread = if m.sw > 0.0 { libm::sqrtf(m.swe2 / m.sw) } else { f32::INFINITY };
-    (Local { p, spread, converged }, w.sigma)
+    Some(Local { p, spread, converged })
 }
 
 /// Solves `M x = b` for symmetric positive definite `M` given by its lower triangle
@@ -647,12 +626,12 @@ mod tests {
                 outliers: 0.0,
             };
             let ev = events(&cyl, 2000, seed);
-            let c = fit(&ev, &cfg(FitMethod::Erwls)).expect("fit");
+            let c = fit(&ev, 0, &cfg(FitMethod::Erwls)).expect("fit");
             assert!(c.converged);
             assert!((c.r as f64 - 9.0).abs() < 0.1, "r {}", c.r);
             assert!((c.vu as f64 - 0.4).abs() < 0.04 && (c.vv as f64 + 0.25).abs() < 0.04, "{c:?}");
             sq_erwls += err(&c, &cyl).powi(2);
-            sq_ols += err(&fit(&ev, &cfg(FitMethod::Ols)).expect("fit"), &cyl).powi(2);
+            sq_ols += err(&fit(&ev, 0, &cfg(FitMethod::Ols)).expect("fit"), &cyl).powi(2);
         }
         let (ols, erwls) = ((sq_ols / trials as f64).sqrt(), (sq_erwls / trials as f64).sqrt());
         // Without outliers the weights may cost a little efficiency, never accuracy.
@@ -682,7 +661,7 @@ mod tests {
                 let (x, y) = (cyl.u + cyl.r + 2.5 + 3.0 * rng.next(), cyl.v - 3.0 + 6.0 * rng.next());
                 ev.push(WindowEvent { x: x.round() as u16, y: y.round() as u16, dt_us: (rng.next() * 1e4) as u32 });
             }
-            let sq = |m| err(&fit(&ev, &cfg(m)).expect("fit"), &cyl).powi(2);
+            let sq = |m| err(&fit(&ev, 0, &cfg(m)).expect("fit"), &cyl).powi(2);
             e_c += sq(FitMethod::Centroid);
             e_o += sq(FitMethod::Ols);
             e_r += sq(FitMethod::Erwls);
@@ -697,11 +676,11 @@ mod tests {
     #[test]
     fn degenerate_clusters_are_rejected() {
         let few: Vec<_> = (0..5).map(|i| WindowEvent { x: 10 + i, y: 10, dt_us: 0 }).collect();
-        assert_eq!(fit(&few, &FitConfig::default()), None);
+        assert_eq!(fit(&few, 0, &FitConfig::default()), None);
         let line: Vec<_> = (0..200).map(|i| WindowEvent { x: 10 + i, y: 40, dt_us: i as u32 }).collect();
-        assert_eq!(fit(&line, &FitConfig::default()), None);
+        assert_eq!(fit(&line, 0, &FitConfig::default()), None);
         let point = vec![WindowEvent { x: 7, y: 7, dt_us: 3 }; 100];
-        assert_eq!(fit(&point, &FitConfig::default()), None);
+        assert_eq!(fit(&point, 0, &FitConfig::default()), None);
     }
 
     #[test]
@@ -722,7 +701,7 @@ mod tests {
         ) {
             let ev: Vec<_> = ev.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
             let cfg = FitConfig { method, max_iterations: iters, min_events: 1 };
-            if let Some(c) = fit(&ev, &cfg) {
+            if let Some(c) = fit(&ev, 0, &cfg) {
                 prop_assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
                 prop_assert_eq!(usize::from(c.n), ev.len());
             }
@@ -733,7 +712,7 @@ mod tests {
             ev in prop::collection::vec((any::<u16>(), any::<u16>(), any::<u32>()), 5..100),
         ) {
             let ev: Vec<_> = ev.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
-            let _ = fit(&ev, &FitConfig { min_events: 1, ..FitConfig::default() });
+            let _ = fit(&ev, 0, &FitConfig { min_events: 1, ..FitConfig::default() });
         }
     }
 }

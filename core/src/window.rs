@@ -2,9 +2,15 @@
 //! tick of event time.
 //!
 //! Ticks fall every `step_us` of event time from the first event on. A window starts at the
-//! first event at or after a tick and holds the next `events` events. The window's
-//! reference time `t_ref` is its first event's time, and each event is stored relative to
-//! it, in 8 bytes.
+//! first event at or after a tick and holds the next `events` events. Each event is stored
+//! relative to the window's first event, in 8 bytes.
+//!
+//! The window's reference time `t_ref`, at which its circle centres are given, is the middle
+//! of its span: `(t_first + t_last) / 2`. The paper takes the first event (any instant works
+//! as long as all circles of a window share it), but a centre is estimated best near the
+//! mean time of its own events, and a window's events are spread evenly over its span: at
+//! the first event every centre would be extrapolated half a window back along a velocity
+//! fitted from a fraction of a pixel of motion, which doubles its error in simulation.
 //!
 //! With one buffer of fixed size, a window is never shared by two ticks: ticks that fall
 //! while a window is still filling (slow scenes, where N events take longer than a step)
@@ -21,7 +27,7 @@ pub struct WindowEvent {
     pub x: u16,
     /// Row.
     pub y: u16,
-    /// Microseconds since the window's `t_ref` (saturates at `u32::MAX`, 71 minutes).
+    /// Microseconds since the window's first event (saturates at `u32::MAX`, 71 minutes).
     pub dt_us: u32,
 }
 
@@ -48,6 +54,9 @@ pub struct WindowInfo {
     /// Sequence number of the window, from 0.
     pub seq: u32,
     /// Time of the window's first event, in microseconds.
+    pub t_first_us: u64,
+    /// The window's reference time, at which its centres are given: the middle of its span,
+    /// `t_first_us + (t_last_us - t_first_us) / 2` (rounded down), in microseconds.
     pub t_ref_us: u64,
     /// Time of the window's last event, in microseconds.
     pub t_last_us: u64,
@@ -79,7 +88,7 @@ enum State {
 ///     }
 /// }
 /// let (info, len) = done.unwrap();
-/// assert_eq!((info.seq, info.t_ref_us, len), (1, 150, 3));
+/// assert_eq!((info.seq, info.t_first_us, info.t_ref_us, info.t_last_us, len), (1, 150, 160, 170, 3));
 /// ```
 #[derive(Debug, Clone)]
 pub struct Windower<const N: usize> {
@@ -87,7 +96,7 @@ pub struct Windower<const N: usize> {
     buf: [WindowEvent; N],
     len: usize,
     t0: u64,
-    t_ref: u64,
+    t_first: u64,
     t_last: u64,
     seq: u32,
     state: State,
@@ -101,7 +110,7 @@ impl<const N: usize> Windower<N> {
             buf: [WindowEvent { x: 0, y: 0, dt_us: 0 }; N],
             len: 0,
             t0: 0,
-            t_ref: 0,
+            t_first: 0,
             t_last: 0,
             seq: 0,
             state: State::Start,
@@ -175,7 +184,8 @@ impl<const N: usize> Windower<N> {
                     self.state = State::Full { k };
                     return Some(WindowInfo {
                         seq: self.seq,
-                        t_ref_us: self.t_ref,
+                        t_first_us: self.t_first,
+                        t_ref_us: self.t_first + (self.t_last - self.t_first) / 2,
                         t_last_us: self.t_last,
                         ticks_skipped: skipped,
                     });
@@ -197,7 +207,7 @@ impl<const N: usize> Windower<N> {
     }
 
     fn begin(&mut self, e: Event, k: u64, skipped: u32) -> Option<WindowInfo> {
-        self.t_ref = e.t_us;
+        self.t_first = e.t_us;
         self.len = 0;
         self.state = State::Filling { k, skipped };
         // Appending through the Filling arm also handles a window of one event.
@@ -205,7 +215,7 @@ impl<const N: usize> Windower<N> {
     }
 
     fn append(&mut self, e: Event) {
-        let dt = e.t_us - self.t_ref;
+        let dt = e.t_us - self.t_first;
         if self.len < N {
             self.buf[self.len] = WindowEvent { x: e.x, y: e.y, dt_us: dt.min(u64::from(u32::MAX)) as u32 };
             self.len += 1;
@@ -262,8 +272,10 @@ mod test {
         // ticks at 0, 100, 200, 300
         let ts = [0, 10, 20, 30, 40, 99, 100, 101, 102, 250, 300, 301, 302];
         let w = run::<8>(WindowConfig { events: 3, step_us: 100 }, &ts);
-        let refs: std::vec::Vec<_> = w.iter().map(|(i, _)| (i.seq, i.t_ref_us, i.t_last_us)).collect();
+        let refs: std::vec::Vec<_> = w.iter().map(|(i, _)| (i.seq, i.t_first_us, i.t_last_us)).collect();
         assert_eq!(refs, [(0, 0, 20), (1, 100, 102), (2, 250, 301)]);
+        let mids: std::vec::Vec<_> = w.iter().map(|(i, _)| i.t_ref_us).collect();
+        assert_eq!(mids, [10, 101, 275]);
         // the window at 250 belongs to tick 200 (first event at or after it); 300 then fell
         // inside it and was skipped
         assert_eq!(w[2].0.ticks_skipped, 0);
@@ -277,7 +289,7 @@ mod test {
         let ts = [0, 120, 250, 260, 290, 301, 302, 303];
         let w = run::<4>(WindowConfig { events: 3, step_us: 100 }, &ts);
         assert_eq!(w.len(), 2);
-        assert_eq!(w[1].0.t_ref_us, 301);
+        assert_eq!(w[1].0.t_first_us, 301);
         assert_eq!(w[1].0.ticks_skipped, 2, "ticks 100 and 200 fell inside window 0");
     }
 
@@ -286,7 +298,7 @@ mod test {
         let ts: std::vec::Vec<u64> = (0..10).collect();
         let w = run::<4>(WindowConfig { events: 2, step_us: 0 }, &ts);
         assert_eq!(w.len(), 5);
-        assert_eq!(w[4].0.t_ref_us, 8);
+        assert_eq!(w[4].0.t_first_us, 8);
     }
 
     #[test]

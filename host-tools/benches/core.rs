@@ -4,7 +4,7 @@
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use evcal_core::{
     cluster::Clusterer,
-    config::{HASH_BUCKETS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     detect::{process, DetectConfig, Detection},
     event::SensorSize,
     fit::fit,
@@ -18,7 +18,7 @@ use evcal_host::{
 /// A window's events grouped by cluster, and the clusters' ranges.
 type Prepared = (Vec<WindowEvent>, Vec<(usize, usize)>);
 
-type Cl = Clusterer<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS, HASH_BUCKETS>;
+type Cl = Clusterer<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS>;
 
 fn windows(light: Light) -> (DetectConfig, Vec<Vec<WindowEvent>>) {
     let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, light, 3).unwrap();
@@ -69,11 +69,11 @@ fn bench(c: &mut Criterion) {
             b.iter(|| {
                 j = (j + 1) % prepared.len();
                 let (ev, ranges) = &prepared[j];
-                ranges.iter().filter_map(|&(s, e)| fit(&ev[s..e], &det.fit)).count()
+                ranges.iter().filter_map(|&(s, e)| fit(&ev[s..e], 0, &det.fit)).count()
             })
         });
         let mut out: Detection<MAX_CLUSTERS> = Detection {
-            info: WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
+            info: WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
             stats: Default::default(),
             centres: heapless::Vec::new(),
         };

@@ -6,7 +6,7 @@
 
 use crate::recording::ReadError;
 use evcal_core::{
-    config::{HASH_BUCKETS, MAX_CLUSTERS},
+    config::MAX_CLUSTERS,
     detect::{DetectConfig, Detection, Detector},
     event::{Event, InputStats},
 };
@@ -14,12 +14,11 @@ use serde::{Deserialize, Serialize};
 
 /// Most events per window the host's detector holds (the firmware's is
 /// [`MAX_EVENTS_PER_WINDOW`](evcal_core::config::MAX_EVENTS_PER_WINDOW)). Results do not
-/// depend on it: only the number of clusters and the hash size shape them, and those match
-/// the firmware's.
+/// depend on it: only the number of clusters shapes them, and that matches the firmware's.
 pub const HOST_MAX_EVENTS: usize = 32_000;
 
-/// The detector the host runs: the firmware's clusters and hash, a larger window.
-pub type HostDetector = Detector<HOST_MAX_EVENTS, MAX_CLUSTERS, HASH_BUCKETS>;
+/// The detector the host runs: the firmware's clusters, a larger window.
+pub type HostDetector = Detector<HOST_MAX_EVENTS, MAX_CLUSTERS>;
 
 /// One circle centre as written to and read from detections files.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
