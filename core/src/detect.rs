@@ -132,7 +132,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
         self.cfg = cfg;
         self.filter = InputFilter::new(cfg.sensor);
         self.windower.reset(cfg.window);
-        self.out.info = WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
+        self.out.info = WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
         self.out.stats = WindowStats::default();
         self.out.centres.clear();
         self.ready = false;
@@ -323,7 +323,7 @@ mod test {
             .collect()
     }
 
-    fn run(det: &mut Detector<256, 16, 128>, evs: &[Event]) -> Vec<Detection<16>> {
+    fn run(det: &mut Detector<256, 16>, evs: &[Event]) -> Vec<Detection<16>> {
         evs.iter().filter_map(|e| det.push(*e).cloned()).collect()
     }
 
@@ -338,7 +338,7 @@ mod test {
         b.cluster.min_pts = 6;
         let (ea, eb) = (events(3000, 1), events(2500, 2));
 
-        let mut reused: Box<Detector<256, 16, 128>> = Box::new(Detector::new(a));
+        let mut reused: Box<Detector<256, 16>> = Box::new(Detector::new(a));
         let first = run(&mut reused, &ea);
         assert!(first.len() >= 5 && first.iter().any(|d| !d.centres.is_empty()), "the data make detections");
         reused.reconfigure(b);
@@ -346,7 +346,7 @@ mod test {
         assert_eq!((reused.pending(), reused.input_stats()), (0, InputStats::default()));
         let again = run(&mut reused, &eb);
 
-        let mut fresh: Box<Detector<256, 16, 128>> = Box::new(Detector::new(b));
+        let mut fresh: Box<Detector<256, 16>> = Box::new(Detector::new(b));
         let want = run(&mut fresh, &eb);
         assert!(want.len() >= 5);
         assert_eq!(again, want);

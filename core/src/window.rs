@@ -135,7 +135,7 @@ impl<const N: usize> Windower<N> {
         self.cfg = Self::clamped(cfg);
         self.len = 0;
         self.t0 = 0;
-        self.t_ref = 0;
+        self.t_first = 0;
         self.t_last = 0;
         self.seq = 0;
         self.state = State::Start;

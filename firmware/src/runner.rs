@@ -3,7 +3,7 @@
 
 use crate::source::{EventSource, SourceError};
 use evcal_core::{
-    config::{HASH_BUCKETS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     detect::{Clock, Detection, Detector},
     event::Event,
 };
@@ -29,20 +29,20 @@ impl Markers for () {
 }
 
 /// The firmware's detector: the core's default capacities.
-pub type FwDetector = Detector<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS, HASH_BUCKETS>;
+pub type FwDetector = Detector<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS>;
 
 /// Feeds events to a detector and processes each window as it completes.
-pub struct Runner<'d, K, M, const N: usize, const C: usize, const B: usize> {
-    det: &'d mut Detector<N, C, B>,
+pub struct Runner<'d, K, M, const N: usize, const C: usize> {
+    det: &'d mut Detector<N, C>,
     clock: K,
     markers: M,
     events: u64,
     windows: u64,
 }
 
-impl<'d, K: Clock, M: Markers, const N: usize, const C: usize, const B: usize> Runner<'d, K, M, N, C, B> {
+impl<'d, K: Clock, M: Markers, const N: usize, const C: usize> Runner<'d, K, M, N, C> {
     /// A runner over `det`, timing stages with `clock`.
-    pub fn new(det: &'d mut Detector<N, C, B>, clock: K, markers: M) -> Self {
+    pub fn new(det: &'d mut Detector<N, C>, clock: K, markers: M) -> Self {
         Self { det, clock, markers, events: 0, windows: 0 }
     }
 
@@ -89,7 +89,7 @@ impl<'d, K: Clock, M: Markers, const N: usize, const C: usize, const B: usize> R
     }
 
     /// The detector (its input statistics, its configuration).
-    pub fn detector(&self) -> &Detector<N, C, B> {
+    pub fn detector(&self) -> &Detector<N, C> {
         self.det
     }
 }
@@ -145,7 +145,7 @@ mod test {
                 Event { t_us: i, x, y, polarity: true }
             })
             .collect();
-        let mut det: Box<Detector<128, 8, 64>> = Box::new(Detector::new(cfg));
+        let mut det: Box<Detector<128, 8>> = Box::new(Detector::new(cfg));
         let mut count = Count::default();
         let mut got = Vec::new();
         let mut r = Runner::new(&mut det, Steps(0), &mut count);
@@ -155,7 +155,7 @@ mod test {
         assert_eq!((count.starts, count.stops), (10, 10));
         assert!(got.iter().all(|d| d.stats.cluster_ticks == 1 && d.stats.fit_ticks == 1), "stages timed");
 
-        let mut reference: Box<Detector<128, 8, 64>> = Box::new(Detector::new(cfg));
+        let mut reference: Box<Detector<128, 8>> = Box::new(Detector::new(cfg));
         let want: Vec<_> = evs.iter().filter_map(|e| reference.push(*e).cloned()).collect();
         assert_eq!(want.len(), 10);
         for (a, b) in got.iter().zip(&want) {
