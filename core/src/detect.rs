@@ -73,9 +73,20 @@ pub struct Detection<const C: usize> {
 
 /// A source of time for per-stage measurements (SysTick on the device). The unit is the
 /// caller's; differences are taken with wrapping arithmetic.
+///
+/// [`Detector::process`] also calls [`window_begins`](Self::window_begins) and
+/// [`window_ends`](Self::window_ends) around each window's clustering and fitting, so that
+/// the firmware can mark them for an external instruction counter however deep in a protocol
+/// loop the detector sits. Both do nothing unless a clock overrides them.
 pub trait Clock {
     /// The current time.
     fn now(&mut self) -> u32;
+
+    /// A window's clustering and fitting start.
+    fn window_begins(&mut self) {}
+
+    /// A window's clustering and fitting are done.
+    fn window_ends(&mut self) {}
 }
 
 /// No clock: stage times read 0.
@@ -180,7 +191,9 @@ impl<const N: usize, const C: usize> Detector<N, C> {
             self.ready = false;
             let cfg = self.cfg;
             let events = self.windower.events_mut();
+            clock.window_begins();
             process(&mut self.clusterer, events, &cfg, &mut self.out, clock);
+            clock.window_ends();
         }
         &self.out
     }
@@ -325,6 +338,50 @@ mod test {
 
     fn run(det: &mut Detector<256, 16>, evs: &[Event]) -> Vec<Detection<16>> {
         evs.iter().filter_map(|e| det.push(*e).cloned()).collect()
+    }
+
+    /// Counts the hooks and readings of a clock, checking the hooks bracket the readings.
+    #[derive(Default)]
+    struct Probe {
+        begins: u32,
+        ends: u32,
+        readings_inside: u32,
+    }
+
+    impl Clock for Probe {
+        fn now(&mut self) -> u32 {
+            assert_eq!(self.begins, self.ends + 1, "read outside a window's processing");
+            self.readings_inside += 1;
+            self.readings_inside
+        }
+        fn window_begins(&mut self) {
+            assert_eq!(self.begins, self.ends);
+            self.begins += 1;
+        }
+        fn window_ends(&mut self) {
+            self.ends += 1;
+            assert_eq!(self.begins, self.ends);
+        }
+    }
+
+    #[test]
+    fn hooks_bracket_each_processed_window_once() {
+        let mut cfg = DetectConfig::new(SensorSize::new(64, 48));
+        cfg.window = WindowConfig { events: 200, step_us: 0 };
+        cfg.cluster.eps = 0.06;
+        let mut det: Box<Detector<256, 16>> = Box::new(Detector::new(cfg));
+        let mut probe = Probe::default();
+        let mut windows = 0;
+        for e in events(1000, 3) {
+            if det.feed(e) {
+                det.process(&mut probe);
+                // a second call without a new window processes nothing
+                det.process(&mut probe);
+                windows += 1;
+            }
+        }
+        assert_eq!((windows, probe.begins, probe.ends), (5, 5, 5));
+        assert!(probe.readings_inside >= 10);
     }
 
     #[test]

@@ -4,8 +4,8 @@
 //! as their bit patterns), then a summary line with the counts and the memory used.
 
 use crate::{
-    board::{self, Board, BoardImpl, SysTickClock},
-    device::{detector, BenchMarkers},
+    board::{self, Board, BoardImpl},
+    device::{detector, MarkedClock},
     stack,
 };
 use core::fmt::Write;
@@ -108,8 +108,7 @@ pub fn run(board: &mut BoardImpl, args: &str) -> bool {
     let Ok(out) = cortex_m_semihosting::hio::hstdout() else { return false };
     let mut out = HostOut { out, buf: [0; 512], len: 0 };
     let Some(det) = detector(cfg) else { return false };
-    let clock: SysTickClock = board.clock();
-    let mut runner = Runner::new(det, clock, BenchMarkers);
+    let mut runner = Runner::new(det, MarkedClock(board.clock()));
     let mut write_ok = true;
     let end = runner.drain(&mut src, |d| write_ok &= write_window(&mut out, d).is_ok());
     let input = runner.detector().input_stats();

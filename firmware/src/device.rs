@@ -1,7 +1,7 @@
 //! What the firmware does once the board is up: the protocol over the UART, or (emulator
 //! only, chosen by QEMU's `-append`) the benchmark replay of `crate::bench`.
 
-use crate::board::{self, Board, BoardImpl};
+use crate::board::{self, Board, BoardImpl, SysTickClock};
 use core::{
     ptr::addr_of_mut,
     sync::atomic::{AtomicBool, Ordering},
@@ -12,21 +12,26 @@ use evcal_core::{
         DEFAULT_EPS, DEFAULT_EVENTS_PER_WINDOW, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS,
         DEFAULT_STEP_US,
     },
-    detect::DetectConfig,
+    detect::{Clock, DetectConfig},
     event::SensorSize,
     fit::{FitConfig, FitMethod},
     window::WindowConfig,
 };
-use evcal_firmware::runner::{FwDetector, Markers};
+use evcal_firmware::runner::FwDetector;
 
-/// Calls the `#[no_mangle]` marker functions the instruction counter breaks on.
-pub struct BenchMarkers;
+/// The board's SysTick clock, calling the `#[no_mangle]` marker functions that the
+/// instruction counter breaks on around each window's clustering and fitting.
+#[derive(Clone, Copy)]
+pub struct MarkedClock(pub SysTickClock);
 
-impl Markers for BenchMarkers {
-    fn start(&mut self) {
+impl Clock for MarkedClock {
+    fn now(&mut self) -> u32 {
+        self.0.now()
+    }
+    fn window_begins(&mut self) {
         crate::bench_start();
     }
-    fn stop(&mut self) {
+    fn window_ends(&mut self) {
         crate::bench_stop();
     }
 }

@@ -1,5 +1,6 @@
 //! The window loop: events in, one detection out per completed window, each window's
-//! processing timed by the board's clock and bracketed by the benchmark markers.
+//! processing timed by the board's clock (whose window hooks call the benchmark markers,
+//! see [`evcal_core::detect::Clock`]).
 
 use crate::source::{EventSource, SourceError};
 use evcal_core::{
@@ -12,38 +13,21 @@ use evcal_core::{
 /// small enough to sit on the stack (16 bytes each).
 pub const READ_BATCH: usize = 64;
 
-/// Hooks run just before and just after each window is processed. The firmware calls its
-/// `bench_start` / `bench_stop` functions here, where an external instruction counter sets
-/// its breakpoints.
-pub trait Markers {
-    /// A window is about to be clustered and fitted.
-    fn start(&mut self);
-    /// The window's detection is complete.
-    fn stop(&mut self);
-}
-
-/// No markers (host tests).
-impl Markers for () {
-    fn start(&mut self) {}
-    fn stop(&mut self) {}
-}
-
 /// The firmware's detector: the core's default capacities.
 pub type FwDetector = Detector<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS>;
 
 /// Feeds events to a detector and processes each window as it completes.
-pub struct Runner<'d, K, M, const N: usize, const C: usize> {
+pub struct Runner<'d, K, const N: usize, const C: usize> {
     det: &'d mut Detector<N, C>,
     clock: K,
-    markers: M,
     events: u64,
     windows: u64,
 }
 
-impl<'d, K: Clock, M: Markers, const N: usize, const C: usize> Runner<'d, K, M, N, C> {
+impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
     /// A runner over `det`, timing stages with `clock`.
-    pub fn new(det: &'d mut Detector<N, C>, clock: K, markers: M) -> Self {
-        Self { det, clock, markers, events: 0, windows: 0 }
+    pub fn new(det: &'d mut Detector<N, C>, clock: K) -> Self {
+        Self { det, clock, events: 0, windows: 0 }
     }
 
     /// Feeds one event; when it completes a window, processes the window and returns its
@@ -53,10 +37,8 @@ impl<'d, K: Clock, M: Markers, const N: usize, const C: usize> Runner<'d, K, M, 
         if !self.det.feed(e) {
             return None;
         }
-        self.markers.start();
-        let d = self.det.process(&mut self.clock);
-        self.markers.stop();
         self.windows += 1;
+        let d = self.det.process(&mut self.clock);
         Some(d)
     }
 
@@ -100,36 +82,29 @@ mod test {
     use crate::source::SliceSource;
     use evcal_core::{detect::DetectConfig, event::SensorSize, window::WindowConfig};
 
-    /// Counts calls, and checks they alternate.
+    /// A clock that advances by one on every reading, and counts the window hooks.
     #[derive(Default)]
-    struct Count {
-        starts: u32,
-        stops: u32,
+    struct Steps {
+        t: u32,
+        begins: u32,
+        ends: u32,
     }
 
-    impl Markers for &mut Count {
-        fn start(&mut self) {
-            assert_eq!(self.starts, self.stops, "start twice");
-            self.starts += 1;
-        }
-        fn stop(&mut self) {
-            self.stops += 1;
-            assert_eq!(self.starts, self.stops, "stop without start");
-        }
-    }
-
-    /// A clock that advances by one on every reading.
-    struct Steps(u32);
-
-    impl Clock for Steps {
+    impl Clock for &mut Steps {
         fn now(&mut self) -> u32 {
-            self.0 += 1;
-            self.0
+            self.t += 1;
+            self.t
+        }
+        fn window_begins(&mut self) {
+            self.begins += 1;
+        }
+        fn window_ends(&mut self) {
+            self.ends += 1;
         }
     }
 
     #[test]
-    fn one_detection_per_window_between_markers_and_same_as_push() {
+    fn one_detection_per_window_between_the_hooks_and_same_as_push() {
         let sensor = SensorSize::new(64, 48);
         let mut cfg = DetectConfig::new(sensor);
         cfg.window = WindowConfig { events: 100, step_us: 0 };
@@ -146,13 +121,13 @@ mod test {
             })
             .collect();
         let mut det: Box<Detector<128, 8>> = Box::new(Detector::new(cfg));
-        let mut count = Count::default();
+        let mut clock = Steps::default();
         let mut got = Vec::new();
-        let mut r = Runner::new(&mut det, Steps(0), &mut count);
+        let mut r = Runner::new(&mut det, &mut clock);
         let end = r.drain(&mut SliceSource::new(&evs), |d| got.push(d.clone()));
         assert_eq!(end, SourceError::End);
         assert_eq!((r.events(), r.windows()), (1050, 10));
-        assert_eq!((count.starts, count.stops), (10, 10));
+        assert_eq!((clock.begins, clock.ends), (10, 10));
         assert!(got.iter().all(|d| d.stats.cluster_ticks == 1 && d.stats.fit_ticks == 1), "stages timed");
 
         let mut reference: Box<Detector<128, 8>> = Box::new(Detector::new(cfg));
