@@ -68,6 +68,16 @@ unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
     board::exit(false)
 }
 
+/// Interrupts the board does not handle itself are faults.
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    if !board::on_interrupt(irqn) {
+        board::report(format_args!("evcal firmware: unexpected interrupt {irqn}"));
+        board::exit(false)
+    }
+}
+
 #[cfg(target_os = "none")]
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {

@@ -9,12 +9,12 @@
 #[cfg(not(feature = "board-stm32f405"))]
 mod mps2_an386;
 #[cfg(not(feature = "board-stm32f405"))]
-pub use mps2_an386::{exit, init, report, BoardImpl};
+pub use mps2_an386::{exit, init, on_interrupt, report, BoardImpl};
 
 #[cfg(feature = "board-stm32f405")]
 mod stm32f405;
 #[cfg(feature = "board-stm32f405")]
-pub use stm32f405::{exit, init, report, BoardImpl};
+pub use stm32f405::{exit, init, on_interrupt, report, BoardImpl};
 
 mod systick;
 pub use systick::SysTickClock;

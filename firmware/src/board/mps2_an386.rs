@@ -16,7 +16,25 @@ mod reg {
     pub const STATE: usize = 0x04;
     /// bit 0: TX enable; bit 1: RX enable.
     pub const CTRL: usize = 0x08;
+    /// Write 1s to clear interrupt bits (bit 1: RX).
+    pub const INTCLEAR: usize = 0x0C;
     pub const BAUDDIV: usize = 0x10;
+}
+
+/// CTRL: transmitter and receiver on.
+const CTRL_ON: u32 = 0b11;
+/// CTRL: receive interrupt enable.
+const CTRL_RX_IRQ: u32 = 1 << 3;
+
+/// UART0's receive interrupt on the an386's NVIC (QEMU's `mps2.c`: RX 0, TX 1).
+#[derive(Clone, Copy)]
+struct Uart0Rx;
+
+// SAFETY: 0 is the number of UART0's receive interrupt on this board.
+unsafe impl cortex_m::interrupt::InterruptNumber for Uart0Rx {
+    fn number(self) -> u16 {
+        0
+    }
 }
 
 const UART0: usize = 0x4000_4000;
@@ -33,7 +51,10 @@ impl CmsdkUart {
         let u = Self { base };
         // QEMU ignores the rate, but a divider of at least 16 is required for the UART to run.
         u.write_reg(reg::BAUDDIV, 16);
-        u.write_reg(reg::CTRL, 0b11);
+        u.write_reg(reg::CTRL, CTRL_ON);
+        // SAFETY: the handler (`on_interrupt`) only masks the interrupt again; nothing relies
+        // on this interrupt staying masked.
+        unsafe { cortex_m::peripheral::NVIC::unmask(Uart0Rx) };
         u
     }
 
@@ -50,6 +71,36 @@ impl CmsdkUart {
     fn rx_ready(&self) -> bool {
         self.read_reg(reg::STATE) & 0b10 != 0
     }
+
+    /// Waits for a received byte asleep (WFI) rather than polling. In QEMU this is what makes
+    /// the UART fast: a polling vCPU holds the emulator's lock, and the I/O thread then gets
+    /// to hand over a byte only now and then (about 12 KB/s); a sleeping one lets it run.
+    fn wait_rx(&self) {
+        while !self.rx_ready() {
+            cortex_m::interrupt::free(|_| {
+                // With interrupts masked, a byte arriving after the check still wakes the
+                // WFI (a pending interrupt wakes it whatever PRIMASK says), and is taken
+                // after `free` unmasks.
+                self.write_reg(reg::CTRL, CTRL_ON | CTRL_RX_IRQ);
+                if !self.rx_ready() {
+                    cortex_m::asm::wfi();
+                }
+            });
+        }
+    }
+}
+
+/// UART0's receive interrupt: its only job was to end a WFI; mask it until the next wait.
+pub fn on_interrupt(irqn: i16) -> bool {
+    if irqn != 0 {
+        return false;
+    }
+    // UART0's other user, `CmsdkUart`, only ever writes CTRL whole (no read-modify-write
+    // this could tear).
+    let uart = CmsdkUart { base: UART0 };
+    uart.write_reg(reg::CTRL, CTRL_ON);
+    uart.write_reg(reg::INTCLEAR, 0b10);
+    true
 }
 
 impl embedded_io::ErrorType for CmsdkUart {
@@ -61,7 +112,7 @@ impl embedded_io::Read for CmsdkUart {
         if buf.is_empty() {
             return Ok(0);
         }
-        while !self.rx_ready() {}
+        self.wait_rx();
         let mut n = 0;
         while n < buf.len() && self.rx_ready() {
             buf[n] = self.read_reg(reg::DATA) as u8;

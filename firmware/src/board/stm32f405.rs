@@ -150,6 +150,11 @@ impl Board for BoardImpl {
     }
 }
 
+/// Interrupts this board handles: none (the USART is polled).
+pub fn on_interrupt(_irqn: i16) -> bool {
+    false
+}
+
 /// Halts: a debugger (probe-rs) sees the breakpoint. `ok` is for the debugger's log.
 pub fn exit(ok: bool) -> ! {
     #[cfg(feature = "defmt")]
