@@ -17,7 +17,24 @@ step "core builds for the Cortex-M4F (thumbv7em-none-eabihf), with and without d
 cargo build -p evcal-core --target thumbv7em-none-eabihf --release
 cargo build -p evcal-core --target thumbv7em-none-eabihf --release --features defmt
 
+# The firmware (about 2 minutes on 2 cores from clean: three images with whole-program
+# optimisation). Clippy for each board; the STM32F405 image and the defmt build must link
+# too (their memory map and defmt's linker script), though only the emulated board runs.
+fw=(-p evcal-firmware --target thumbv7em-none-eabihf --profile firmware)
+step "firmware: clippy and images for the Cortex-M4F (emulated board; STM32F405 board; with defmt)"
+cargo clippy "${fw[@]}" -- -D warnings
+cargo clippy "${fw[@]}" --features board-stm32f405 -- -D warnings
+cargo clippy "${fw[@]}" --features defmt -- -D warnings
+cargo build "${fw[@]}" --features board-stm32f405
+cargo build "${fw[@]}" --features defmt
+cargo build "${fw[@]}"  # last: the image QEMU boots
+
 step "tests (host: unit, property, end to end)"
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
+
+# The firmware on QEMU's mps2-an386 against the host (about a minute once built; see
+# tests/tests/firmware_qemu.rs). Ignored by a plain `cargo test`, which needs no QEMU.
+step "firmware under QEMU (emulated Cortex-M4F board)"
+time cargo test -p evcal-tests --test firmware_qemu -- --ignored

@@ -142,7 +142,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
     pub fn reconfigure(&mut self, cfg: DetectConfig) {
         self.cfg = cfg;
         self.filter = InputFilter::new(cfg.sensor);
-        self.windower.reset(cfg.window);
+        self.windower.reconfigure(cfg.window);
         self.out.info = WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
         self.out.stats = WindowStats::default();
         self.out.centres.clear();

@@ -131,7 +131,7 @@ impl<const N: usize> Windower<N> {
     /// Starts over as `new(cfg)` would, in place: the event buffer (8 bytes per event, tens
     /// of kilobytes) is neither rebuilt nor copied, which matters where it lives in a
     /// `static` and the stack is small.
-    pub fn reset(&mut self, cfg: WindowConfig) {
+    pub fn reconfigure(&mut self, cfg: WindowConfig) {
         self.cfg = Self::clamped(cfg);
         self.len = 0;
         self.t0 = 0;
