@@ -347,47 +347,48 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             self.labels[i] = i as u16 | if core { CORE } else { 0 };
         }
 
-        // 2. Join core points that are neighbours. A root is always its component's lowest
-        //    index, so the numbering below does not depend on the union order.
+        // 2. Join core points that are neighbours, and find each border point's lowest-index
+        //    core neighbour (the first core point of a span is the span's lowest; the lowest
+        //    over all spans wins), in one sweep. A root is always its component's lowest
+        //    index, so the numbering below does not depend on the union order. Border labels
+        //    hold their best core neighbour's index meanwhile.
+        for l in &mut self.labels[..n] {
+            if *l & CORE == 0 {
+                *l = NONE;
+            }
+        }
         let mut rows = Rows::new(reach);
         while let Some((b, above)) = rows.next(events) {
-            // Within the row: in a spatial run, each core point joins the next one to its
+            // Within the row. In a spatial run each core point joins the next one to its
             // right when they are neighbours; that chain and the links below join every pair.
-            if spatial {
-                let mut prev: Option<usize> = None;
-                for j in usize::from(b.start)..usize::from(b.end) {
-                    if self.labels[j] & CORE == 0 {
-                        continue;
+            for (i, lo, hi) in spans(events, b, b, span[0]) {
+                *work = work.wrapping_add(1);
+                if self.labels[i] & CORE == 0 {
+                    self.border_candidate(events, i, lo, hi, m);
+                } else if spatial {
+                    if let Some(j) = (i + 1..hi).find(|&j| self.labels[j] & CORE != 0) {
+                        self.union(i, j);
                     }
-                    if let Some(p) = prev.filter(|&p| events[j].x - events[p].x <= span[0]) {
-                        self.union(p, j);
-                    }
-                    prev = Some(j);
-                }
-            } else {
-                for (i, _, hi) in spans(events, b, b, span[0]) {
-                    if self.labels[i] & CORE != 0 {
-                        for j in i + 1..hi {
-                            if self.labels[j] & CORE != 0 && near_t(i, j) {
-                                self.union(i, j);
-                            }
+                } else {
+                    for j in i + 1..hi {
+                        if self.labels[j] & CORE != 0 && near_t(i, j) {
+                            self.union(i, j);
                         }
                     }
                 }
             }
-            // With each row above: every event of a span is a neighbour. In a spatial run,
-            // joining the point to its span's first and last core points is enough: a span is
-            // at most twice the same-row reach wide, so at most one gap between consecutive
-            // core points in it exceeds that reach, and the row's chain joins each side of
-            // such a gap to an end.
+            // With each row above. Every event of a span is a neighbour. In a spatial run,
+            // joining a core point to its span's first and last core points is enough: a span
+            // is at most twice the same-row reach wide, so at most one gap between
+            // consecutive core points in it exceeds that reach, and the row's chain joins
+            // each side of such a gap to an end.
             for a in above {
                 let s = span[usize::from(b.y - a.y)];
                 for (i, lo, hi) in spans(events, b, *a, s) {
                     *work = work.wrapping_add(1);
                     if self.labels[i] & CORE == 0 {
-                        continue;
-                    }
-                    if spatial {
+                        self.border_candidate(events, i, lo, hi, m);
+                    } else if spatial {
                         if let Some(j) = (lo..hi).find(|&j| self.labels[j] & CORE != 0) {
                             self.union(i, j);
                             if let Some(k) = (j + 1..hi).rev().find(|&k| self.labels[k] & CORE != 0) {
@@ -402,39 +403,28 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                         }
                     }
                 }
-            }
-        }
-
-        self.number(n, stats);
-
-        // 4. Border points join their lowest-index core neighbour's cluster; the rest is noise.
-        //    Each span's first core neighbour is its lowest; the lowest over all spans wins.
-        for l in &mut self.labels[..n] {
-            if *l & CORE == 0 {
-                *l = NONE;
-            }
-        }
-        let mut rows = Rows::new(reach);
-        while let Some((b, above)) = rows.next(events) {
-            for a in above.iter().chain(core::iter::once(&b)) {
-                let s = span[usize::from(b.y - a.y)];
-                let pairs = [(b, *a), (*a, b)];
-                let ways = if a.y == b.y { 1 } else { 2 };
-                for &(from, to) in &pairs[..ways] {
-                    for (i, lo, hi) in spans(events, from, to, s) {
-                        if self.labels[i] & CORE != 0 {
-                            continue;
-                        }
+                // The border points of the row above look down at this one.
+                for (i, lo, hi) in spans(events, *a, b, s) {
+                    if self.labels[i] & CORE == 0 {
                         *work = work.wrapping_add(1);
-                        let best = usize::from(self.labels[i]);
-                        if let Some(j) = (lo..hi.min(best)).find(|&j| self.labels[j] & CORE != 0 && near_t(i, j)) {
-                            self.labels[i] = j as u16;
-                        }
+                        self.border_candidate(events, i, lo, hi, m);
                     }
                 }
             }
         }
+        self.number(n, stats);
         self.settle_borders(n, stats);
+    }
+
+    /// Offers border point `i` the first core neighbour in `events[lo..hi]` (a span of its
+    /// neighbours in space) that comes before its best so far.
+    #[inline]
+    fn border_candidate(&mut self, events: &[WindowEvent], i: usize, lo: usize, hi: usize, m: &Metric) {
+        let best = usize::from(self.labels[i]);
+        let e = events[i];
+        if let Some(j) = (lo..hi.min(best)).find(|&j| self.labels[j] & CORE != 0 && m.near_in_time(&e, &events[j])) {
+            self.labels[i] = j as u16;
+        }
     }
 
     /// DBSCAN by comparing every pair of events: for neighbourhoods too wide for the row sweep.

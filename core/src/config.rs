@@ -27,4 +27,4 @@ pub const MAX_CLUSTERS: usize = 96;
 pub const DEFAULT_MIN_CLUSTER_EVENTS: u16 = 20;
 
 /// Default most Levenberg–Marquardt iterations of one eRWLS fit.
-pub const DEFAULT_MAX_ITERATIONS: u8 = 8;
+pub const DEFAULT_MAX_ITERATIONS: u8 = 6;

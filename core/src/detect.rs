@@ -5,10 +5,11 @@
 //! in the `Detector` value, so the firmware can place it in a `static`.
 
 use crate::{
+    arc::{Circle, Moments},
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
     config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     event::{Event, InputFilter, InputStats, SensorSize},
-    fit::{fit, same_circle, Centre, FitConfig},
+    fit::{fit_from, Centre, FitConfig},
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
 
@@ -227,7 +228,8 @@ pub fn process<const N: usize, const C: usize>(
 ) {
     let t0 = clock.now();
     let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
-    let merged = join_crescents(clusterer, events);
+    let mut starts: heapless::Vec<Option<Circle>, C> = heapless::Vec::new();
+    let merged = join_crescents(clusterer, events, &mut starts);
     let mut ranges: heapless::Vec<ClusterRange, C> = heapless::Vec::new();
     for r in clusterer.ranges() {
         // The clusterer holds at most C clusters: a push cannot fail.
@@ -237,8 +239,9 @@ pub fn process<const N: usize, const C: usize>(
     let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
     let mut rejected = 0u16;
     out.centres.clear();
-    for r in &ranges {
-        match fit(slice(events, r), t_ref, &cfg.fit) {
+    for (k, r) in ranges.iter().enumerate() {
+        let start = starts.get(k).copied().flatten();
+        match fit_from(slice(events, r), start, t_ref, &cfg.fit) {
             Some(c) => {
                 let _ = out.centres.push(c);
             }
@@ -264,20 +267,35 @@ fn slice<'a>(events: &'a [WindowEvent], r: &ClusterRange) -> &'a [WindowEvent] {
     events.get(usize::from(r.start)..usize::from(r.end)).unwrap_or(&[])
 }
 
+/// Largest RMS distance, px, of two clusters' events from the circle through their union for
+/// the clusters to be joined: the edge's own spread (about half a pixel) and the motion
+/// within a window, with room to spare, but well below what two neighbouring circles or a
+/// circle and clutter leave.
+const JOIN_MAX_RMS: f32 = 1.0;
+
 /// Joins clusters whose events lie on one circle (the crescents of a circle that DBSCAN
 /// keeps apart, see [`process`]) and leaves the events grouped by the joined clusters.
 /// Candidates are pairs whose bounding boxes are no further apart than the larger box is
-/// wide; [`same_circle`] decides. Returns how many clusters were joined to another.
-fn join_crescents<const N: usize, const C: usize>(clusterer: &mut Clusterer<N, C>, events: &mut [WindowEvent]) -> u16 {
+/// wide; they join when the algebraic circle through their union ([`Moments`]) passes within
+/// [`JOIN_MAX_RMS`] of the events of each and is no larger than the union. Returns how many
+/// clusters were joined to another; `starts` receives the algebraic circle of each
+/// cluster as it is then (joined or not), to start its fit from.
+fn join_crescents<const N: usize, const C: usize>(
+    clusterer: &mut Clusterer<N, C>,
+    events: &mut [WindowEvent],
+    starts: &mut heapless::Vec<Option<Circle>, C>,
+) -> u16 {
     let mut boxes: heapless::Vec<[u16; 4], C> = heapless::Vec::new();
+    let mut sums: heapless::Vec<Moments, C> = heapless::Vec::new();
     for r in clusterer.group(events) {
-        let b = slice(events, r)
+        let part = slice(events, r);
+        let b = part
             .iter()
             .fold([u16::MAX, u16::MAX, 0, 0], |b, e| [b[0].min(e.x), b[1].min(e.y), b[2].max(e.x), b[3].max(e.y)]);
         let _ = boxes.push(b);
+        let _ = sums.push(Moments::of(part));
     }
-    let ranges: heapless::Vec<ClusterRange, C> = clusterer.ranges().iter().copied().collect();
-    let k = ranges.len();
+    let k = boxes.len();
     // Union-find over clusters, each root the lowest index of its set.
     let mut into = [0u16; C];
     for (c, slot) in into.iter_mut().enumerate() {
@@ -299,13 +317,35 @@ fn join_crescents<const N: usize, const C: usize>(clusterer: &mut Clusterer<N, C
                 continue;
             }
             let (ri, rj) = (root(&into, i), root(&into, j));
-            if ri == rj || !same_circle(slice(events, &ranges[i]), slice(events, &ranges[j])) {
+            if ri == rj {
                 continue;
             }
-            let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
-            into[hi] = lo as u16;
-            merged += 1;
+            let extent = f32::from(a[2].max(b[2]) - a[0].min(b[0])).max(f32::from(a[3].max(b[3]) - a[1].min(b[1])));
+            let joins = sums[i]
+                .joint_circle(&sums[j])
+                .is_some_and(|(c, ra, rb)| c.r > 0.5 && c.r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
+            if joins {
+                let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
+                into[hi] = lo as u16;
+                merged += 1;
+            }
         }
+    }
+    // The joined clusters' sums, in the order `merge` numbers them (by their lowest member).
+    let mut joined: heapless::Vec<Moments, C> = heapless::Vec::new();
+    let mut slot = [0u16; C];
+    for c in 0..k {
+        let r = root(&into, c);
+        if r == c {
+            slot[c] = joined.len() as u16;
+            let _ = joined.push(sums[c]);
+        } else if let Some(m) = joined.get_mut(usize::from(slot[r])) {
+            m.add(&sums[c]);
+        }
+    }
+    starts.clear();
+    for m in &joined {
+        let _ = starts.push(m.circle());
     }
     if merged > 0 {
         clusterer.merge(events, &into[..k]);

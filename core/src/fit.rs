@@ -20,7 +20,10 @@
 //! Everything is `f32` with `libm` and one hand-made exponential, in a fixed order, so the
 //! host and the Cortex-M4F compute the same bits.
 
-use crate::window::WindowEvent;
+use crate::{
+    arc::{Circle, Moments},
+    window::WindowEvent,
+};
 
 /// Which estimator [`fit`] uses. `Centroid` and `Ols` exist for the ablation of the paper's
 /// Table II; `Erwls` is the method evcal uses.
@@ -92,7 +95,7 @@ const KERNEL_WIDTH: f32 = 1.5;
 /// never produce denormals (which the M4F and the host would treat alike, but slowly).
 const MAX_WEIGHT_EXPONENT: f32 = 18.0;
 /// A fit has converged when an accepted step moves the centre and radius less than this, px.
-const STEP_TOLERANCE: f32 = 1e-3;
+const STEP_TOLERANCE: f32 = 5e-3;
 /// Histogram of absolute residuals for the robust scale: bin width (px) and count.
 const HIST_BIN: f32 = 0.125;
 const HIST_BINS: usize = 64;
@@ -103,6 +106,12 @@ const HIST_BINS: usize = 64;
 ///
 /// Cost: a few passes over the events per iteration, no allocation, no recursion.
 pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
+    fit_from(events, None, t_ref_us, cfg)
+}
+
+/// [`fit`], started from `start`, the algebraic circle through the events when the caller
+/// has it already (see [`Moments`](crate::arc::Moments)); `None` computes it.
+pub fn fit_from(events: &[WindowEvent], start: Option<Circle>, t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
     let n = events.len();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
@@ -110,7 +119,10 @@ pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Cen
     let frame = Frame::of(&[events]);
     let result = match cfg.method {
         FitMethod::Centroid => centroid(events, &frame),
-        FitMethod::Ols | FitMethod::Erwls => cylinder(events, &frame, cfg),
+        FitMethod::Ols | FitMethod::Erwls => {
+            let start = start.or_else(|| Moments::of(events).circle())?;
+            cylinder(events, &frame, &start, cfg)
+        }
     }?;
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
 }
@@ -218,75 +230,6 @@ fn centroid(events: &[WindowEvent], f: &Frame) -> Option<Local> {
     Some(Local { p: [u, v, 0.0, 0.0, r], spread, converged: true })
 }
 
-/// Kåsa's algebraic circle fit extended to a moving circle: least squares of
-/// `x² + y² + Dx + Ey + Gτx + Hτy + F + Iτ = 0`, linear in its six unknowns, over the events
-/// of `parts`. It drops the tiny `(a² + b²)τ²` term of the exact model, so it is a start, not
-/// an answer, but a closed-form one that needs no start itself. Returns `[u, v, a, b, r]`.
-fn kasa(parts: &[&[WindowEvent]], f: &Frame) -> Option<[f32; 5]> {
-    let mut m = [[0.0f32; 6]; 6];
-    let mut rhs = [0.0f32; 6];
-    let mut used = 0u32;
-    for e in parts.iter().flat_map(|p| p.iter()) {
-        let (x, y, t) = f.local(e);
-        used += 1;
-        let z = x * x + y * y;
-        let row = [x, y, t * x, t * y, 1.0, t];
-        for i in 0..6 {
-            for j in 0..=i {
-                m[i][j] += row[i] * row[j];
-            }
-            rhs[i] -= row[i] * z;
-        }
-    }
-    if used < 6 {
-        return None;
-    }
-    // A window whose events share one instant cannot show motion: a ridge on the time terms
-    // keeps them at zero instead of making the system singular.
-    let ridge = 1e-6 * used as f32;
-    for k in [2, 3, 5] {
-        m[k][k] += ridge;
-    }
-    let s = solve_spd::<6>(m, rhs)?;
-    let (u, v) = (-0.5 * s[0], -0.5 * s[1]);
-    let r2 = u * u + v * v - s[4];
-    (r2 > 0.0 && r2.is_finite()).then(|| [u, v, -0.5 * s[2], -0.5 * s[3], libm::sqrtf(r2)])
-}
-
-/// Largest RMS distance, px, of two clusters' events from the circle fitted to their union for
-/// [`same_circle`] to join them: the edge's own spread (about half a pixel) and the
-/// algebraic fit's looseness, with room to spare, but well below what two neighbouring
-/// circles or a circle and clutter leave.
-const JOIN_MAX_RMS: f32 = 1.0;
-
-/// Whether the events of `a` and `b` lie on one moving circle: the moving-circle Kåsa fit of
-/// their union leaves each of them within [`JOIN_MAX_RMS`] of it, and the circle is no larger
-/// than the union's extent. Used to join the crescents of one circle that DBSCAN keeps apart
-/// (see [`crate::detect::process`]). Two passes over the events, no allocation.
-pub fn same_circle(a: &[WindowEvent], b: &[WindowEvent]) -> bool {
-    if a.is_empty() || b.is_empty() || a.len() + b.len() > usize::from(u16::MAX) {
-        return false;
-    }
-    let f = Frame::of(&[a, b]);
-    let Some(p) = kasa(&[a, b], &f) else { return false };
-    let extent = 2.0 * f.half_w.max(f.half_h) + 1.0;
-    if !(p[4] > 0.5 && p[4] <= extent) {
-        return false;
-    }
-    let rms = |part: &[WindowEvent]| {
-        let sq: f32 = part
-            .iter()
-            .map(|e| {
-                let (x, y, t) = f.local(e);
-                let r = residual(&p, x, y, t);
-                r * r
-            })
-            .sum();
-        libm::sqrtf(sq / part.len() as f32)
-    };
-    rms(a) <= JOIN_MAX_RMS && rms(b) <= JOIN_MAX_RMS
-}
-
 /// Fewest events for the cylinder's tilt (the circle's velocity) to be fitted. A window
 /// covers a fraction of a pixel of motion, so the velocity of a small cluster is mostly noise;
 /// and since the centre is given at the window's middle, close to every cluster's mean time,
@@ -296,11 +239,6 @@ const TILT_MIN_EVENTS: usize = 48;
 /// Gauss–Newton from the algebraic start is well behaved, but a wild step on a degenerate
 /// cluster must not throw the fit somewhere it cannot come back from.
 const MAX_STEP_FRACTION: f32 = 0.25;
-
-#[inline]
-fn residual(p: &[f32; 5], x: f32, y: f32, t: f32) -> f32 {
-    dist(x - p[0] - p[2] * t, y - p[1] - p[3] * t) - p[4]
-}
 
 /// The weights' σ for a median absolute residual (1.4826·MAD is σ for Gaussian inliers).
 fn kernel(mad: f32) -> f32 {
@@ -339,16 +277,6 @@ impl Histogram {
         }
         HIST_BINS as f32 * HIST_BIN
     }
-}
-
-/// Median of |ξ| at parameters `p`.
-fn median_abs_residual(events: &[WindowEvent], f: &Frame, p: &[f32; 5]) -> f32 {
-    let mut h = Histogram::new();
-    for e in events {
-        let (x, y, t) = f.local(e);
-        h.add(residual(p, x, y, t).abs());
-    }
-    h.median()
 }
 
 #[inline]
@@ -390,18 +318,23 @@ struct Pass {
     hist: Histogram,
 }
 
-// The normal equations read best as the index loops of their definition.
-#[allow(clippy::needless_range_loop)]
 fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
-    let mut out = Pass { a: [[0.0; 5]; 5], g: [0.0; 5], sw: 0.0, swe2: 0.0, hist: Histogram::new() };
+    let mut hist = Histogram::new();
     let [u, v, va, vb, r] = *p;
+    // J = −(cx, cy, cx·τ, cy·τ, 1) for the unit direction (cx, cy) from the centre: JᵀWJ is
+    // made of the weighted sums of cx², cx·cy, cy² times 1, τ, τ², of cx, cy times 1, τ, and
+    // of w; JᵀWξ of wξ times cx, cy, cx·τ, cy·τ, 1. Locals keep all of them in registers.
+    let (mut sxx, mut sxy, mut syy, mut sxxt, mut sxyt, mut syyt, mut sxxtt, mut sxytt, mut syytt) =
+        (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let (mut sx, mut sy, mut sxt, mut syt, mut sw) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    let (mut gx, mut gy, mut gxt, mut gyt, mut g1, mut swe2) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
     for e in events {
         let (x, y, t) = f.local(e);
         let dx = x - u - va * t;
         let dy = y - v - vb * t;
         let d = dist(dx, dy);
         let xi = d - r;
-        out.hist.add(xi.abs());
+        hist.add(xi.abs());
         if d <= 0.0 {
             continue; // on the axis: no direction, no information about the centre
         }
@@ -409,20 +342,42 @@ fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
         if wi == 0.0 {
             continue;
         }
-        out.sw += wi;
-        out.swe2 += wi * xi * xi;
-        let (cx, cy) = (dx / d, dy / d);
-        // ∂ξ/∂(u, v, a, b, r)
-        let j = [-cx, -cy, -cx * t, -cy * t, -1.0];
-        for i in 0..5 {
-            let wj = wi * j[i];
-            for k in 0..=i {
-                out.a[i][k] += wj * j[k];
-            }
-            out.g[i] += wj * xi;
-        }
+        let inv = 1.0 / d;
+        let (cx, cy) = (dx * inv, dy * inv);
+        let (wx, wy) = (wi * cx, wi * cy);
+        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
+        sxx += wxx;
+        sxy += wxy;
+        syy += wyy;
+        sxxt += wxx * t;
+        sxyt += wxy * t;
+        syyt += wyy * t;
+        let tt = t * t;
+        sxxtt += wxx * tt;
+        sxytt += wxy * tt;
+        syytt += wyy * tt;
+        sx += wx;
+        sy += wy;
+        sxt += wx * t;
+        syt += wy * t;
+        sw += wi;
+        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
+        gx += wxxi;
+        gy += wyxi;
+        gxt += wxxi * t;
+        gyt += wyxi * t;
+        g1 += wxi;
+        swe2 += wxi * xi;
     }
-    out
+    // Signs: each entry is a product of two components of J, each carrying a minus sign.
+    let a = [
+        [sxx, 0.0, 0.0, 0.0, 0.0],
+        [sxy, syy, 0.0, 0.0, 0.0],
+        [sxxt, sxyt, sxxtt, 0.0, 0.0],
+        [sxyt, syyt, sxytt, syytt, 0.0],
+        [sx, sy, sxt, syt, sw],
+    ];
+    Pass { a, g: [-gx, -gy, -gxt, -gyt, -g1], sw, swe2, hist }
 }
 
 /// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
@@ -430,18 +385,17 @@ fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
 /// parameters, the weighted normal equations, one step). The kernel width follows the
 /// residuals' median (one iteration behind, from the same pass). The tilt is fitted only for
 /// clusters of at least [`TILT_MIN_EVENTS`].
-fn cylinder(events: &[WindowEvent], f: &Frame, cfg: &FitConfig) -> Option<Local> {
-    let mut p = kasa(&[events], f)?;
+fn cylinder(events: &[WindowEvent], f: &Frame, start: &Circle, cfg: &FitConfig) -> Option<Local> {
+    let mut p = [start.u - f.x0, start.v - f.y0, 0.0, 0.0, start.r];
     let tilt = events.len() >= TILT_MIN_EVENTS && f.t_reach > 0.0;
-    if !tilt {
-        p[2] = 0.0;
-        p[3] = 0.0;
-    }
     let reweight = cfg.method == FitMethod::Erwls;
-    let mut w = Weights { reweight, sigma: kernel(median_abs_residual(events, f, &p)) };
+    // The start's RMS residual is not robust (clutter in the cluster inflates it), but it only
+    // sets the first iteration's kernel: the histogram of that pass sets the next one.
+    let mut w = Weights { reweight, sigma: KERNEL_WIDTH * start.rms.max(MIN_SIGMA) };
     let mut converged = false;
     let mut spread = f32::INFINITY;
-    for _ in 0..cfg.max_iterations {
+    let mut it = 0usize;
+    while it < usize::from(cfg.max_iterations) {
         let ps = pass(events, f, &p, &w);
         if ps.sw > 0.0 {
             spread = libm::sqrtf(ps.swe2 / ps.sw);
@@ -477,6 +431,7 @@ fn cylinder(events: &[WindowEvent], f: &Frame, cfg: &FitConfig) -> Option<Local>
         for (q, s) in p.iter_mut().zip(step) {
             *q += s;
         }
+        // The kernel follows the residuals' spread as the fit sheds its outliers.
         if reweight {
             w.sigma = kernel(ps.hist.median());
         }
@@ -485,6 +440,7 @@ fn cylinder(events: &[WindowEvent], f: &Frame, cfg: &FitConfig) -> Option<Local>
             converged = true;
             break;
         }
+        it += 1;
     }
     Some(Local { p, spread, converged })
 }
@@ -535,7 +491,9 @@ fn solve_spd<const K: usize>(mut m: [[f32; K]; K], mut b: [f32; K]) -> Option<[f
 #[inline]
 fn exp_neg(z: f32) -> f32 {
     let y = -z * core::f32::consts::LOG2_E; // in [−26, 0]
-    let k = libm::floorf(y);
+                                            // floor(y) for y ≤ 0 without a library call: truncation rounds towards zero.
+    let trunc = y as i32;
+    let k = if (trunc as f32) > y { trunc - 1 } else { trunc } as f32;
     let fpart = y - k; // [0, 1)
                        // 2^f = e^(f·ln2) on [0, 1): Taylor to degree 7, whose remainder is below 2e-6 there.
     let t = fpart * core::f32::consts::LN_2;

@@ -9,12 +9,14 @@
 //! Data flows one way through the modules:
 //!
 //! ```text
-//! event ──▶ window ──▶ cluster ──▶ fit ──▶ detect (per-window result)
+//! event ──▶ window ──▶ cluster ──▶ arc ──▶ fit ──▶ detect (per-window result)
 //! ```
 //!
 //! * [`event`]: the event type (integer microseconds, wrap-safe), input validation.
 //! * [`window`]: the windower: the first N events at or after each tick of event time.
-//! * [`cluster`]: DBSCAN (and the spatio-temporal variant) over a fixed-size spatial hash.
+//! * [`cluster`]: DBSCAN (and the spatio-temporal variant) over the sorted pixel grid.
+//! * [`arc`]: power sums of a cluster and the algebraic circle through them, to join the
+//!   crescents of one circle.
 //! * [`fit`]: eRWLS slanted-cylinder fit of each cluster, giving a circle centre.
 //! * [`detect`]: runs clustering and fitting over one window, in caller-provided memory.
 //!
@@ -34,6 +36,7 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod arc;
 pub mod cluster;
 pub mod config;
 pub mod detect;
