@@ -5,7 +5,11 @@
  *   gcc -shared -fPIC -O2 -o target/libinsn_count.so firmware/tools/insn_count.c
  *   qemu-system-arm ... -plugin target/libinsn_count.so,start=0xADDR,stop=0xADDR -d plugin -D LOG
  *
- * LOG then has `bench[K]: N insns` per start..stop span and `total: N insns` at exit. A span
+ * LOG then has `bench[K]: N insns` per start..stop span and `total: N insns` at exit. With
+ * `profile=on` as well, it also has `tb 0xADDR N` lines at exit: instructions executed inside
+ * the spans per translated block, by the block's first address (map them to functions with
+ * the ELF's symbol table; a block lies within one function, inlined code counting as its
+ * caller's). A span
  * counts the instructions from the start marker's first instruction to the stop marker's
  * (give or take one, depending on the order QEMU runs a callback and an inline count of the
  * same instruction), so it includes the markers' call overhead, a few instructions. Debian ships QEMU with plugin support but without the plugin header, so the
@@ -35,6 +39,8 @@ uint64_t qemu_plugin_insn_vaddr(const struct qemu_plugin_insn *);
 void qemu_plugin_register_vcpu_insn_exec_inline(struct qemu_plugin_insn *, enum qemu_plugin_op, void *, uint64_t);
 void qemu_plugin_register_vcpu_insn_exec_cb(struct qemu_plugin_insn *, insn_cb, enum qemu_plugin_cb_flags, void *);
 void qemu_plugin_register_atexit_cb(qemu_plugin_id_t, exit_cb, void *);
+uint64_t qemu_plugin_tb_vaddr(const struct qemu_plugin_tb *);
+void qemu_plugin_register_vcpu_tb_exec_cb(struct qemu_plugin_tb *, insn_cb, enum qemu_plugin_cb_flags, void *);
 void qemu_plugin_outs(const char *);
 
 API int qemu_plugin_version = 1;
@@ -45,6 +51,21 @@ static uint64_t span_begin;     /* `executed` when the start marker ran */
 static uint64_t spans;
 static int in_span;
 static uint64_t start_pc = UINT64_MAX, stop_pc = UINT64_MAX;
+
+/* Profile: one record per translation (a block translated twice has two; they are summed
+ * by address by whoever reads the log). */
+struct block {
+    uint64_t pc, insns, executed;
+    struct block *next;
+};
+static int profiling;
+static struct block *blocks;
+
+static void on_block(unsigned int vcpu, void *user) {
+    struct block *b = user;
+    (void)vcpu;
+    if (in_span) b->executed += b->insns;
+}
 
 static void at_start(unsigned int vcpu, void *user) {
     (void)vcpu; (void)user;
@@ -64,6 +85,16 @@ static void at_stop(unsigned int vcpu, void *user) {
 
 static void on_translate(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
     (void)id;
+    if (profiling) {
+        struct block *b = calloc(1, sizeof *b);
+        if (b) {
+            b->pc = qemu_plugin_tb_vaddr(tb);
+            b->insns = qemu_plugin_tb_n_insns(tb);
+            b->next = blocks;
+            blocks = b;
+            qemu_plugin_register_vcpu_tb_exec_cb(tb, on_block, QEMU_PLUGIN_CB_NO_REGS, b);
+        }
+    }
     for (size_t i = 0, n = qemu_plugin_tb_n_insns(tb); i < n; i++) {
         struct qemu_plugin_insn *insn = qemu_plugin_tb_get_insn(tb, i);
         uint64_t pc = qemu_plugin_insn_vaddr(insn);
@@ -76,6 +107,11 @@ static void on_translate(qemu_plugin_id_t id, struct qemu_plugin_tb *tb) {
 static void at_exit(qemu_plugin_id_t id, void *user) {
     char line[64];
     (void)id; (void)user;
+    for (struct block *b = blocks; b; b = b->next) {
+        if (!b->executed) continue;
+        snprintf(line, sizeof line, "tb 0x%llx %llu\n", (unsigned long long)b->pc, (unsigned long long)b->executed);
+        qemu_plugin_outs(line);
+    }
     snprintf(line, sizeof line, "total: %llu insns\n", (unsigned long long)executed);
     qemu_plugin_outs(line);
 }
@@ -86,6 +122,7 @@ API int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t *info, int ar
         /* Thumb addresses from the symbol table have bit 0 set; instructions do not. */
         if (!strncmp(argv[i], "start=", 6)) start_pc = strtoull(argv[i] + 6, NULL, 0) & ~1ull;
         if (!strncmp(argv[i], "stop=", 5)) stop_pc = strtoull(argv[i] + 5, NULL, 0) & ~1ull;
+        if (!strcmp(argv[i], "profile=on")) profiling = 1;
     }
     if (start_pc == UINT64_MAX || stop_pc == UINT64_MAX) {
         qemu_plugin_outs("insn_count: give start=ADDR,stop=ADDR\n");

@@ -9,7 +9,8 @@
 //!
 //! Options: `--seconds S` (3.5), `--step-ms MS` (33.333), `--events N` (4000),
 //! `--light good|low`, `--plugin LIB` (no exact counts without it), `--cpi X` (1.25),
-//! `--mhz F` (168), `--dir DIR` (target/bench-firmware).
+//! `--mhz F` (168), `--dir DIR` (target/bench-firmware), `--profile N` (also list the N
+//! functions that execute the most instructions inside the windows; slower).
 
 use anyhow::{bail, ensure, Context, Result};
 use evcal_core::{detect::DetectConfig, event::SensorSize};
@@ -17,7 +18,7 @@ use evcal_host::{
     eval::simulate,
     sim::{Light, SimConfig, Trajectory},
 };
-use evcal_tests::firmware::{self, BenchRun};
+use evcal_tests::firmware::{self, BenchRun, Counter};
 use std::path::PathBuf;
 
 /// SysTick ticks once every this many instructions on QEMU's mps2-an386 under
@@ -33,6 +34,7 @@ struct Opts {
     cpi: f64,
     mhz: f64,
     dir: PathBuf,
+    profile: usize,
 }
 
 fn opts() -> Result<Opts> {
@@ -45,6 +47,7 @@ fn opts() -> Result<Opts> {
         cpi: 1.25,
         mhz: 168.0,
         dir: firmware::target_dir().join("bench-firmware"),
+        profile: 0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -64,6 +67,7 @@ fn opts() -> Result<Opts> {
             "--cpi" => o.cpi = v()?.parse()?,
             "--mhz" => o.mhz = v()?.parse()?,
             "--dir" => o.dir = v()?.into(),
+            "--profile" => o.profile = v()?.parse()?,
             _ => bail!("unknown option {a} (see the doc comment of tests/examples/bench_firmware.rs)"),
         }
     }
@@ -112,7 +116,8 @@ fn main() -> Result<()> {
 
     eprintln!("bench: replaying {} events ({} windows) in QEMU", events.len(), want.len());
     let t = std::time::Instant::now();
-    let run: BenchRun = firmware::run_bench(&elf, &bulk, o.events, step_us, o.plugin.as_deref())?;
+    let counter = o.plugin.as_deref().map(|plugin| Counter { plugin, profile: o.profile > 0 });
+    let run: BenchRun = firmware::run_bench(&elf, &bulk, o.events, step_us, counter)?;
     let qemu_s = t.elapsed().as_secs_f64();
 
     // The figures mean nothing unless the device computed what the host computes.
@@ -198,6 +203,17 @@ fn main() -> Result<()> {
     );
     println!("budget: flash 512 KiB, RAM 128 KiB (linker-enforced), static RAM target <= 64 KiB");
     println!("qemu wall time: {qemu_s:.1} s for {events_fed} events");
+    if o.profile > 0 {
+        let all: u64 = run.profile.iter().map(|(_, n)| n).sum();
+        println!("where the instructions inside the windows go (per window, by function; inlined code counts as its caller's):");
+        for (name, n) in run.profile.iter().take(o.profile) {
+            println!(
+                "  {:>8.3} M  {:>5.1} %  {name}",
+                *n as f64 / run.windows.len().max(1) as f64 / 1e6,
+                100.0 * *n as f64 / all.max(1) as f64
+            );
+        }
+    }
     Ok(())
 }
 

@@ -152,6 +152,8 @@ pub struct BenchRun {
     pub instructions: Vec<u64>,
     /// Instructions of the whole run, when the counting plugin ran.
     pub total_instructions: Option<u64>,
+    /// With profiling: instructions executed inside the spans, by function, most first.
+    pub profile: Vec<(String, u64)>,
 }
 
 impl BenchRun {
@@ -166,22 +168,32 @@ impl BenchRun {
     }
 }
 
-/// Boots the firmware in benchmark mode on `bulk_file`. With `plugin` (the qemu-insn-count
-/// library), also counts the instructions between the benchmark markers.
+/// The instruction-counting QEMU plugin (`firmware/tools/insn_count.c`) and what to ask of it.
+#[derive(Debug, Clone, Copy)]
+pub struct Counter<'a> {
+    /// The plugin library.
+    pub plugin: &'a Path,
+    /// Also attribute the instructions inside the spans to functions.
+    pub profile: bool,
+}
+
+/// Boots the firmware in benchmark mode on `bulk_file`. With `counter`, also counts the
+/// instructions between the benchmark markers.
 pub fn run_bench(
     elf: &Path,
     bulk_file: &Path,
     events_per_window: usize,
     step_us: u64,
-    plugin: Option<&Path>,
+    counter: Option<Counter>,
 ) -> Result<BenchRun> {
     let mut cmd = Command::new("bash");
     cmd.arg(workspace_root().join("scripts/qemu-run.sh")).arg(elf);
     cmd.arg("-append").arg(format!("bench {} {events_per_window} {step_us}", bulk_file.display()));
     let log = bulk_file.with_extension("insn.log");
-    if let Some(p) = plugin {
+    if let Some(c) = counter {
         let (start, stop) = (symbol(elf, "bench_start")?, symbol(elf, "bench_stop")?);
-        cmd.arg("-plugin").arg(format!("{},start=0x{start:x},stop=0x{stop:x}", p.display()));
+        let profile = if c.profile { ",profile=on" } else { "" };
+        cmd.arg("-plugin").arg(format!("{},start=0x{start:x},stop=0x{stop:x}{profile}", c.plugin.display()));
         cmd.args(["-d", "plugin", "-D"]).arg(&log);
     }
     let out = cmd.stderr(Stdio::inherit()).output().context("running QEMU (scripts/qemu-run.sh)")?;
@@ -197,7 +209,7 @@ pub fn run_bench(
         }
     }
     ensure!(!run.summary.is_empty(), "no summary line; the firmware printed:\n{}", tail(&stdout));
-    if plugin.is_some() {
+    if let Some(c) = counter {
         let text = std::fs::read_to_string(&log).with_context(|| format!("reading {}", log.display()))?;
         run.instructions = text
             .lines()
@@ -205,6 +217,13 @@ pub fn run_bench(
             .collect();
         run.total_instructions =
             text.lines().find_map(|l| l.strip_prefix("total: ")?.strip_suffix(" insns")?.parse().ok());
+        if c.profile {
+            let blocks = text.lines().filter_map(|l| {
+                let mut w = l.strip_prefix("tb 0x")?.split_ascii_whitespace();
+                Some((u64::from_str_radix(w.next()?, 16).ok()?, w.next()?.parse::<u64>().ok()?))
+            });
+            run.profile = by_function(elf, blocks)?;
+        }
     }
     Ok(run)
 }
@@ -223,6 +242,33 @@ pub fn symbol(elf: &Path, name: &str) -> Result<u64> {
         .find(|l| l.split_ascii_whitespace().nth(2) == Some(name))
         .with_context(|| format!("{name} not in {}", elf.display()))?;
     Ok(u64::from_str_radix(line.split_ascii_whitespace().next().unwrap_or(""), 16)?)
+}
+
+/// Sums counts by address into counts by the function holding the address (the ELF's
+/// symbol table, demangled by `nm`), most first.
+fn by_function(elf: &Path, counts: impl Iterator<Item = (u64, u64)>) -> Result<Vec<(String, u64)>> {
+    let out = Command::new("nm").args(["-C", "-n", "--defined-only"]).arg(elf).output().context("running nm")?;
+    let text = String::from_utf8_lossy(&out.stdout);
+    // Function symbols, by address (Thumb addresses have bit 0 set; instructions do not).
+    let funcs: Vec<(u64, &str)> = text
+        .lines()
+        .filter_map(|l| {
+            let (addr, rest) = l.split_once(' ')?;
+            let (kind, name) = rest.split_once(' ')?;
+            // `$t`, `$d`: ARM mapping symbols, not functions.
+            (matches!(kind, "t" | "T" | "W" | "w") && !name.starts_with('$'))
+                .then_some((u64::from_str_radix(addr, 16).ok()? & !1, name))
+        })
+        .collect();
+    let mut sums: std::collections::HashMap<&str, u64> = std::collections::HashMap::new();
+    for (pc, n) in counts {
+        let i = funcs.partition_point(|(a, _)| *a <= pc);
+        let name = if i == 0 { "?" } else { funcs[i - 1].1 };
+        *sums.entry(name).or_default() += n;
+    }
+    let mut v: Vec<(String, u64)> = sums.into_iter().map(|(k, n)| (k.to_string(), n)).collect();
+    v.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
+    Ok(v)
 }
 
 /// The host-side run of the core over `events` (what `evcal detect` computes).
