@@ -31,4 +31,10 @@ fi
 for comp in clippy rustfmt; do
   rustup component list --installed | grep -q "^$comp" || rustup component add "$comp"
 done
+# Python packages the tests use as independent writers of Prophesee files
+# (tests/fixtures/prophesee/make.py): expelliarmus and numpy.
+if ! python3 -c "import expelliarmus, numpy" >/dev/null 2>&1; then
+  echo "setup: installing Python packages: expelliarmus numpy"
+  python3 -m pip install --quiet --disable-pip-version-check "expelliarmus==1.1.12" numpy
+fi
 echo "setup: ok"

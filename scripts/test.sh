@@ -29,8 +29,16 @@ cargo build "${fw[@]}" --features board-stm32f405
 cargo build "${fw[@]}" --features defmt
 cargo build "${fw[@]}"  # last: the image QEMU boots
 
+step "test data: faery's real recordings (fetched, not committed), Prophesee fixtures as make.py writes them"
+bash scripts/fetch-faery.sh >/dev/null
+python3 tests/fixtures/prophesee/make.py --check
+
 step "tests (host: unit, property, end to end)"
 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
+
+step "fuzz the EVT decoders (cargo-fuzz, nightly; 15 s a target)"
+bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-15}"
+
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
 

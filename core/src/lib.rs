@@ -20,6 +20,10 @@
 //! * [`fit`]: eRWLS slanted-cylinder fit of each cluster, giving a circle centre.
 //! * [`detect`]: runs clustering and fitting over one window, in caller-provided memory.
 //!
+//! Beside the pipeline, [`evt`] decodes the byte streams of Prophesee sensors (EVT 2.0, 2.1,
+//! 3.0) into events, streaming and in fixed memory, for the firmware's sensor input and the
+//! host's RAW file reader.
+//!
 //! ## Guarantees
 //!
 //! * `no_std`, no allocator: every buffer is inline with a const-generic capacity or is
@@ -41,6 +45,7 @@ pub mod cluster;
 pub mod config;
 pub mod detect;
 pub mod event;
+pub mod evt;
 pub mod fit;
 pub mod window;
 pub mod wire;

@@ -5,12 +5,16 @@
 //! content and extension ([`Format::detect`]).
 
 mod h5;
+pub mod prophesee;
 mod text;
 
 pub use h5::{write_ecalib_h5, H5Reader};
 pub use text::{write_text, TextReader};
 
-use evcal_core::event::{Event, SensorSize};
+use evcal_core::{
+    event::{Event, SensorSize},
+    evt::{Encoding, Evt21Order},
+};
 use std::{fmt, path::Path};
 
 /// A recording format evcal reads.
@@ -20,6 +24,10 @@ pub enum Format {
     Text,
     /// HDF5 with a dataset `events_data` of N x 4 `[x, y, p, t_seconds]` (E-Calib's layout).
     EcalibH5,
+    /// Prophesee RAW: a `%` header, then an EVT 2.0 / 2.1 / 3.0 stream.
+    PropheseeRaw(Encoding),
+    /// Prophesee `.dat` of CD events: a `%` header, then 8-byte records.
+    PropheseeDat,
 }
 
 impl Format {
@@ -33,7 +41,13 @@ impl Format {
         if n == 8 && head == *b"\x89HDF\r\n\x1a\n" {
             return Ok(Format::EcalibH5);
         }
-        match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
+            if let Some(f) = prophesee::sniff(path, ext.as_deref())? {
+                return Ok(f);
+            }
+        }
+        match ext.as_deref() {
             Some("h5" | "hdf5") => Ok(Format::EcalibH5),
             _ => Ok(Format::Text),
         }
@@ -44,6 +58,11 @@ impl Format {
         match self {
             Format::Text => "text (t x y p)",
             Format::EcalibH5 => "HDF5 (E-Calib events_data)",
+            Format::PropheseeRaw(Encoding::Evt2) => "Prophesee RAW EVT 2.0",
+            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::LowHalfFirst)) => "Prophesee RAW EVT 2.1",
+            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::HighHalfFirst)) => "Prophesee RAW EVT 2.1 (IMX636 order)",
+            Format::PropheseeRaw(Encoding::Evt3) => "Prophesee RAW EVT 3.0",
+            Format::PropheseeDat => "Prophesee DAT (CD events)",
         }
     }
 }
@@ -55,6 +74,8 @@ pub enum Position {
     Line(u64),
     /// A row of a table (an event index), from 0.
     Row(u64),
+    /// A byte offset in a binary file, from 0.
+    Byte(u64),
     /// Nowhere in particular (opening, metadata).
     File,
 }
@@ -85,6 +106,7 @@ impl fmt::Display for ReadError {
         match self.at {
             Position::Line(l) => write!(f, "{}:{}: {}", self.path, l, self.message),
             Position::Row(r) => write!(f, "{}: event {}: {}", self.path, r, self.message),
+            Position::Byte(b) => write!(f, "{}: byte {}: {}", self.path, b, self.message),
             Position::File => write!(f, "{}: {}", self.path, self.message),
         }
     }
@@ -111,6 +133,10 @@ pub(crate) trait EventSource {
     fn next_event(&mut self) -> Option<Result<Event, ReadError>>;
     /// Bytes (or rows, scaled to bytes) consumed so far, for progress.
     fn progress_bytes(&self) -> u64;
+    /// What the reader skipped, dropped or assumed so far, one sentence each.
+    fn notes(&self) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 impl Recording {
@@ -129,12 +155,26 @@ impl Recording {
                 let len = Some(r.len());
                 Ok(Self { format, sensor: None, len, file_bytes, events: Box::new(r) })
             }
+            Format::PropheseeRaw(enc) => {
+                let r = prophesee::RawReader::open(path, enc)?;
+                Ok(Self { format, sensor: r.sensor(), len: None, file_bytes, events: Box::new(r) })
+            }
+            Format::PropheseeDat => {
+                let r = prophesee::DatReader::open(path)?;
+                Ok(Self { format, sensor: r.sensor(), len: Some(r.len()), file_bytes, events: Box::new(r) })
+            }
         }
     }
 
     /// Bytes of the file consumed so far (approximate for HDF5), for progress bars.
     pub fn progress_bytes(&self) -> u64 {
         self.events.progress_bytes()
+    }
+
+    /// What the reader skipped, dropped or assumed so far (complete once the events are
+    /// read), one sentence each: events a file holds but evcal could not use are said here.
+    pub fn notes(&self) -> Vec<String> {
+        self.events.notes()
     }
 }
 

@@ -5,6 +5,7 @@
 mod common;
 mod demo;
 mod detect;
+mod info;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -20,7 +21,7 @@ DBSCAN), and each circle's slanted cylinder in (x, y, t) is fitted by reweighted
 (eRWLS) to give sub-pixel centres. The same fixed-memory core runs on a microcontroller beside \
 the sensor and here on the host.",
     after_help = "Examples:\n  evcal simulate --sensor davis346 --pattern 4x11 --seconds 5 --out rec.txt\n  \
-evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal demo"
+evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  evcal demo"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -49,6 +50,12 @@ enum Command {
     /// Writes ./evcal-out/detections.jsonl and ./evcal-out/truth.json. (Grid finding and the
     /// intrinsic solve join this command when they land.)
     Demo(demo::DemoArgs),
+    /// What a recording holds: format, sensor size, events, time span, event rate over time,
+    /// polarity balance, and what the reader skipped or assumed.
+    ///
+    /// --json prints one object with (at least) "format", "width", "height", "events",
+    /// "t_first_us", "t_last_us".
+    Info(info::InfoArgs),
 }
 
 fn main() {
@@ -57,6 +64,7 @@ fn main() {
         Command::Detect(a) => detect::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Info(a) => info::run(a),
     };
     if let Err(e) = r {
         eprintln!("evcal: error: {e:#}");
