@@ -5,11 +5,14 @@
 //! from an [`EventSource`]. What is here compiles on any target, so the host tests it and the
 //! host tools use the same code to write what the firmware reads:
 //!
-//! * [`source`]: the event-source trait every input implements (UART replay, the emulator's
-//!   bulk file, later a sensor's EVT byte stream), and [`source::SliceSource`] for tests.
+//! * [`source`]: the event-source trait every input implements (the emulator's bulk file, a
+//!   sensor's EVT byte stream; UART replay arrives through the wire protocol's device loop),
+//!   and [`source::SliceSource`] for tests.
 //! * [`bulk`]: the bulk replay format, 8 bytes per event, read by the emulator-only
 //!   semihosting source so that CI can replay hundreds of windows faster than QEMU's UART
 //!   (about 14 KB/s) carries them.
+//! * [`evt`]: a Prophesee sensor's EVT byte stream as an event source (the core's decoders
+//!   behind the same trait).
 //! * [`runner`]: the window loop (feed, process between the benchmark markers, hand each
 //!   detection on), shared by every mode of the firmware.
 #![cfg_attr(not(test), no_std)]
@@ -17,5 +20,6 @@
 #![deny(missing_docs)]
 
 pub mod bulk;
+pub mod evt;
 pub mod runner;
 pub mod source;
