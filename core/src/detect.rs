@@ -129,6 +129,19 @@ impl<const N: usize, const C: usize, const B: usize> Detector<N, C, B> {
         }
     }
 
+    /// Starts afresh with `cfg`, exactly as [`new`](Self::new) would, but in place: on the
+    /// device a temporary detector would not fit the stack.
+    pub fn reconfigure(&mut self, cfg: DetectConfig) {
+        self.cfg = cfg;
+        self.filter = InputFilter::new(cfg.sensor);
+        self.windower.reconfigure(cfg.window);
+        // The clusterer keeps nothing from one window to the next.
+        self.out.info = WindowInfo { seq: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
+        self.out.stats = WindowStats::default();
+        self.out.centres.clear();
+        self.ready = false;
+    }
+
     /// The configuration in force (events per window after clamping).
     pub const fn config(&self) -> DetectConfig {
         let mut cfg = self.cfg;

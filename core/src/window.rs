@@ -115,6 +115,25 @@ impl<const N: usize> Windower<N> {
         }
     }
 
+    /// Starts afresh with `cfg`, exactly as [`new`](Self::new) would, but in place: a
+    /// temporary windower (its buffer is 32 KB by default) would not fit a small stack.
+    pub fn reconfigure(&mut self, cfg: WindowConfig) {
+        let events = if cfg.events == 0 {
+            1
+        } else if cfg.events > N {
+            N
+        } else {
+            cfg.events
+        };
+        self.cfg = WindowConfig { events, step_us: cfg.step_us };
+        self.len = 0;
+        self.t0 = 0;
+        self.t_ref = 0;
+        self.t_last = 0;
+        self.seq = 0;
+        self.state = State::Start;
+    }
+
     /// The configuration in force (after clamping).
     pub const fn config(&self) -> WindowConfig {
         self.cfg
