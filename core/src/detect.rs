@@ -137,13 +137,13 @@ impl<const N: usize, const C: usize> Detector<N, C> {
         }
     }
 
-    /// Starts over with a new configuration, as `new(cfg)` would, but in place: nothing of
-    /// the detector's tens of kilobytes is rebuilt on the stack (the firmware keeps it in a
-    /// `static` and reconfigures it when the host sends a configuration).
+    /// Starts afresh with `cfg`, exactly as [`new`](Self::new) would, but in place: on the
+    /// device a temporary detector would not fit the stack.
     pub fn reconfigure(&mut self, cfg: DetectConfig) {
         self.cfg = cfg;
         self.filter = InputFilter::new(cfg.sensor);
         self.windower.reconfigure(cfg.window);
+        // The clusterer keeps nothing from one window to the next.
         self.out.info = WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
         self.out.stats = WindowStats::default();
         self.out.centres.clear();
