@@ -5,7 +5,7 @@
 
 use crate::{
     board::{self, Board, BoardImpl},
-    device::{detector, MarkedClock},
+    device::{bench_detector, MarkedClock},
     stack,
 };
 use core::fmt::Write;
@@ -107,7 +107,7 @@ pub fn run(board: &mut BoardImpl, args: &str) -> bool {
     }
     let Ok(out) = cortex_m_semihosting::hio::hstdout() else { return false };
     let mut out = HostOut { out, buf: [0; 512], len: 0 };
-    let Some(det) = detector(cfg) else { return false };
+    let Some(det) = bench_detector(cfg) else { return false };
     let mut runner = Runner::new(det, MarkedClock(board.clock()));
     let mut write_ok = true;
     let end = runner.drain(&mut src, |d| write_ok &= write_window(&mut out, d).is_ok());
@@ -126,7 +126,7 @@ pub fn run(board: &mut BoardImpl, args: &str) -> bool {
         height,
         runner.detector().config().window.events,
         cfg.window.step_us,
-        board.clock_hz(),
+        board::CLOCK_HZ,
         board.serial_overruns(),
         stack::statics(),
         stack::high_water(),

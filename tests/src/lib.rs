@@ -2,3 +2,4 @@
 
 pub mod faery;
 pub mod firmware;
+pub mod link;

@@ -9,17 +9,18 @@
 #[cfg(not(feature = "board-stm32f405"))]
 mod mps2_an386;
 #[cfg(not(feature = "board-stm32f405"))]
-pub use mps2_an386::{exit, init, on_interrupt, report, BoardImpl};
+pub use mps2_an386::{exit, init, on_interrupt, report, BoardImpl, CLOCK_HZ};
 
 #[cfg(feature = "board-stm32f405")]
 mod stm32f405;
 #[cfg(feature = "board-stm32f405")]
-pub use stm32f405::{exit, init, on_interrupt, report, BoardImpl};
+pub use stm32f405::{exit, init, on_interrupt, report, BoardImpl, CLOCK_HZ};
 
 mod systick;
 pub use systick::SysTickClock;
 
-/// What the application needs of a board.
+/// What the application needs of a board. Each board also exports `CLOCK_HZ` (what one
+/// tick of its clock is), `init`, `report`, `exit` and `on_interrupt`.
 pub trait Board {
     /// The serial link to the host.
     type Serial: embedded_io::Read + embedded_io::ReadReady + embedded_io::Write;
@@ -27,8 +28,6 @@ pub trait Board {
     fn serial(&mut self) -> &mut Self::Serial;
     /// The core-clock tick counter (SysTick), for per-stage timing.
     fn clock(&self) -> SysTickClock;
-    /// Core clock in Hz (what one tick is).
-    fn clock_hz(&self) -> u32;
     /// Bytes the serial receiver lost because they arrived before the previous one was read
     /// (hardware overruns; 0 where the link cannot overrun, as in QEMU).
     fn serial_overruns(&self) -> u32;

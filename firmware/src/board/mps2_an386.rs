@@ -39,6 +39,10 @@ unsafe impl cortex_m::interrupt::InterruptNumber for Uart0Rx {
 
 const UART0: usize = 0x4000_4000;
 
+/// QEMU's mps2 boards: a 25 MHz system clock (SysTick ticks every 40 instructions under
+/// `-icount shift=0`).
+pub const CLOCK_HZ: u32 = 25_000_000;
+
 /// The CMSDK APB UART.
 pub struct CmsdkUart {
     base: usize,
@@ -165,12 +169,6 @@ impl Board for BoardImpl {
 
     fn clock(&self) -> SysTickClock {
         self.clock
-    }
-
-    fn clock_hz(&self) -> u32 {
-        // QEMU's mps2 boards: a 25 MHz system clock (SysTick ticks every 40 instructions
-        // under -icount shift=0).
-        25_000_000
     }
 
     fn serial_overruns(&self) -> u32 {

@@ -35,6 +35,9 @@ fn modify(addr: usize, clear: u32, set: u32) {
     wr(addr, (rd(addr) & !clear) | set);
 }
 
+/// The core clock, 168 MHz: SysTick counts cycles.
+pub const CLOCK_HZ: u32 = SYSCLK_HZ;
+
 /// HSI (16 MHz) -> PLL (M 16, N 336, P 2) -> 168 MHz; AHB /1, APB1 /4 (42 MHz), APB2 /2.
 fn clocks() {
     // 5 wait states at 168 MHz and 3.3 V, with prefetch and caches.
@@ -139,10 +142,6 @@ impl Board for BoardImpl {
 
     fn clock(&self) -> SysTickClock {
         self.clock
-    }
-
-    fn clock_hz(&self) -> u32 {
-        SYSCLK_HZ
     }
 
     fn serial_overruns(&self) -> u32 {
