@@ -18,7 +18,10 @@ use evcal_host::{
     eval::simulate,
     sim::{Light, SimConfig, Trajectory},
 };
-use evcal_tests::firmware::{self, BenchRun, Counter};
+use evcal_tests::{
+    firmware::{self, BenchRun, Counter},
+    link,
+};
 use std::path::PathBuf;
 
 /// SysTick ticks once every this many instructions on QEMU's mps2-an386 under
@@ -141,6 +144,16 @@ fn main() -> Result<()> {
     );
     let centres: usize = run.windows.iter().map(|w| w.centres.len()).sum();
     println!("centres per window: {:.1} mean", centres as f64 / run.windows.len().max(1) as f64);
+    // The device's detection frames are these bytes exactly (tests/tests/firmware_qemu.rs).
+    let frames = link::expected_frames(&events, cfg)?;
+    let sizes: Vec<f64> = frames.iter().map(|(_, f)| f.len() as f64).collect();
+    let s = summary(&sizes);
+    println!(
+        "link, device to host: detection frame (COBS, CRC, delimiters) mean {:.0} B, max {:.0} B per window; plus a Stats frame every 16 windows and the Acks of a replay (raw events: {} B per window)",
+        s.mean,
+        s.max,
+        o.events * 8
+    );
     let to_ms = |insns: f64| insns * o.cpi / (o.mhz * 1e3);
     if run.instructions.is_empty() {
         println!("instructions per window: not counted (no --plugin)");
