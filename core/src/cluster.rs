@@ -169,6 +169,12 @@ fn pixel(e: &WindowEvent) -> u32 {
     (u32::from(e.y) << 16) | u32::from(e.x)
 }
 
+/// The order [`Clusterer::cluster`] sorts events into: by pixel (row, column), then time.
+#[inline]
+pub fn pixel_order(e: &WindowEvent) -> u64 {
+    (u64::from(pixel(e)) << 32) | u64::from(e.dt_us)
+}
+
 /// A run of events sharing one pixel row, `events[start..end]`, sorted by column.
 #[derive(Clone, Copy, Default)]
 struct Row {
@@ -220,20 +226,41 @@ impl Rows {
 /// For each event of `from` (in column order), the span of events of `to` within `s` columns
 /// of it: `(index in from, lo, hi)`. Both rows are sorted by column, so the span slides.
 fn spans(events: &[WindowEvent], from: Row, to: Row, s: u16) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
-    let (mut lo, mut hi) = (usize::from(to.start), usize::from(to.start));
-    let end = usize::from(to.end);
-    (usize::from(from.start)..usize::from(from.end)).map(move |i| {
-        let x = events[i].x;
-        let (first, last) = (x.saturating_sub(s), x.saturating_add(s));
-        while lo < end && events[lo].x < first {
+    let base = usize::from(to.start);
+    let target = events.get(base..usize::from(to.end)).unwrap_or(&[]);
+    let source = events.get(usize::from(from.start)..usize::from(from.end)).unwrap_or(&[]);
+    let (mut lo, mut hi) = (0, 0);
+    source.iter().enumerate().map(move |(k, e)| {
+        let (first, last) = (e.x.saturating_sub(s), e.x.saturating_add(s));
+        while lo < target.len() && target[lo].x < first {
             lo += 1;
         }
         hi = hi.max(lo);
-        while hi < end && events[hi].x <= last {
+        while hi < target.len() && target[hi].x <= last {
             hi += 1;
         }
-        (i, lo, hi)
+        (usize::from(from.start) + k, base + lo, base + hi)
     })
+}
+
+/// Adds to the count of each event of row `from` the number of events of row `to` within `s`
+/// columns of it: the spatial case of [`spans`], as a tight loop over the two rows.
+fn count_spans(events: &[WindowEvent], counts: &mut [u16], from: Row, to: Row, s: u16) {
+    let (f0, f1) = (usize::from(from.start), usize::from(from.end));
+    let target = events.get(usize::from(to.start)..usize::from(to.end)).unwrap_or(&[]);
+    let (Some(source), Some(counts)) = (events.get(f0..f1), counts.get_mut(f0..f1)) else { return };
+    let (mut lo, mut hi) = (0, 0);
+    for (e, c) in source.iter().zip(counts.iter_mut()) {
+        let (first, last) = (e.x.saturating_sub(s), e.x.saturating_add(s));
+        while lo < target.len() && target[lo].x < first {
+            lo += 1;
+        }
+        hi = hi.max(lo);
+        while hi < target.len() && target[hi].x <= last {
+            hi += 1;
+        }
+        *c = c.saturating_add((hi - lo) as u16);
+    }
 }
 
 /// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
@@ -289,7 +316,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         self.clusters = 0;
         let duration = events.iter().map(|e| e.dt_us).max().unwrap_or(0);
         let m = Metric::new(sensor, cfg, duration);
-        events.sort_unstable_by_key(|e| (u64::from(pixel(e)) << 32) | u64::from(e.dt_us));
+        events.sort_unstable_by_key(pixel_order);
         let min_pts = usize::from(cfg.min_pts.max(1));
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
@@ -328,15 +355,16 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         while let Some((b, above)) = rows.next(events) {
             for a in above.iter().chain(core::iter::once(&b)) {
                 let s = span[usize::from(b.y - a.y)];
-                for (i, lo, hi) in spans(events, b, *a, s) {
-                    *work = work.wrapping_add(1);
-                    let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
-                    self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
-                }
-                if a.y != b.y {
-                    for (i, lo, hi) in spans(events, *a, b, s) {
-                        let c = if spatial { hi - lo } else { (lo..hi).filter(|&j| near_t(i, j)).count() };
-                        self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
+                let ways: &[(Row, Row)] = if a.y == b.y { &[(b, b)] } else { &[(b, *a), (*a, b)] };
+                for &(from, to) in ways {
+                    *work = work.wrapping_add(u32::from(from.end - from.start));
+                    if spatial {
+                        count_spans(events, &mut self.labels, from, to, s);
+                    } else {
+                        for (i, lo, hi) in spans(events, from, to, s) {
+                            let c = (lo..hi).filter(|&j| near_t(i, j)).count();
+                            self.labels[i] = self.labels[i].saturating_add(c.min(0xFFFF) as u16);
+                        }
                     }
                 }
             }

@@ -28,3 +28,7 @@ pub const DEFAULT_MIN_CLUSTER_EVENTS: u16 = 20;
 
 /// Default most Levenberg–Marquardt iterations of one eRWLS fit.
 pub const DEFAULT_MAX_ITERATIONS: u8 = 6;
+
+/// Most events DBSCAN left as noise that one fitted circle takes back (see
+/// [`detect::process`](crate::detect::process)); further ones are left out of its fit.
+pub const MAX_RECRUITS: usize = 128;

@@ -6,8 +6,9 @@
 
 use crate::{
     arc::{Circle, Moments},
+    cluster::pixel_order,
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
-    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
     fit::{fit_from, Centre, FitConfig},
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
@@ -227,23 +228,29 @@ pub fn process<const N: usize, const C: usize>(
     clock: &mut impl Clock,
 ) {
     let t0 = clock.now();
+    let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
     let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
     let mut starts: heapless::Vec<Option<Circle>, C> = heapless::Vec::new();
-    let merged = join_crescents(clusterer, events, &mut starts);
+    let merged = join_crescents(clusterer, events, t_ref, &mut starts);
     let mut ranges: heapless::Vec<ClusterRange, C> = heapless::Vec::new();
     for r in clusterer.ranges() {
         // The clusterer holds at most C clusters: a push cannot fail.
         let _ = ranges.push(*r);
     }
     let t1 = clock.now();
-    let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
-    let mut rejected = 0u16;
-    out.centres.clear();
+    let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {
         let start = starts.get(k).copied().flatten();
-        match fit_from(slice(events, r), start, t_ref, &cfg.fit) {
+        let _ = fits.push(fit_from(&[slice(events, r)], start, t_ref, &cfg.fit));
+    }
+    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit);
+    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit);
+    let mut rejected = 0u16;
+    out.centres.clear();
+    for f in &fits {
+        match f {
             Some(c) => {
-                let _ = out.centres.push(c);
+                let _ = out.centres.push(*c);
             }
             None => rejected += 1,
         }
@@ -275,7 +282,7 @@ const JOIN_MAX_RMS: f32 = 1.0;
 
 /// Joins clusters whose events lie on one circle (the crescents of a circle that DBSCAN
 /// keeps apart, see [`process`]) and leaves the events grouped by the joined clusters.
-/// Candidates are pairs whose bounding boxes are no further apart than the larger box is
+/// Candidates are pairs whose bounding boxes are no further apart than the smaller box is
 /// wide; they join when the algebraic circle through their union ([`Moments`]) passes within
 /// [`JOIN_MAX_RMS`] of the events of each and is no larger than the union. Returns how many
 /// clusters were joined to another; `starts` receives the algebraic circle of each
@@ -283,6 +290,7 @@ const JOIN_MAX_RMS: f32 = 1.0;
 fn join_crescents<const N: usize, const C: usize>(
     clusterer: &mut Clusterer<N, C>,
     events: &mut [WindowEvent],
+    t_ref: u32,
     starts: &mut heapless::Vec<Option<Circle>, C>,
 ) -> u16 {
     let mut boxes: heapless::Vec<[u16; 4], C> = heapless::Vec::new();
@@ -293,7 +301,7 @@ fn join_crescents<const N: usize, const C: usize>(
             .iter()
             .fold([u16::MAX, u16::MAX, 0, 0], |b, e| [b[0].min(e.x), b[1].min(e.y), b[2].max(e.x), b[3].max(e.y)]);
         let _ = boxes.push(b);
-        let _ = sums.push(Moments::of(part));
+        let _ = sums.push(Moments::of(part, t_ref));
     }
     let k = boxes.len();
     // Union-find over clusters, each root the lowest index of its set.
@@ -312,7 +320,8 @@ fn join_crescents<const N: usize, const C: usize>(
         for j in i + 1..k {
             let (a, b) = (boxes[i], boxes[j]);
             let gap = a[0].max(b[0]).saturating_sub(a[2].min(b[2])).max(a[1].max(b[1]).saturating_sub(a[3].min(b[3])));
-            let size = (a[2] - a[0]).max(a[3] - a[1]).max(b[2] - b[0]).max(b[3] - b[1]);
+            // Two crescents of one circle are no further apart than either spans.
+            let size = (a[2] - a[0]).max(a[3] - a[1]).min((b[2] - b[0]).max(b[3] - b[1]));
             if gap > size {
                 continue;
             }
@@ -353,8 +362,227 @@ fn join_crescents<const N: usize, const C: usize>(
     merged
 }
 
+/// Whether two fits may be fragments of one circle: each centre lies inside the other circle
+/// (two circles of a grid never overlap like that).
+fn overlapping(a: &Centre, b: &Centre) -> bool {
+    let (du, dv) = (a.u - b.u, a.v - b.v);
+    let r = a.r.max(b.r);
+    du * du + dv * dv <= r * r
+}
+
+/// Largest weighted spread, px, of the fit to two joined fragments for the join to stand.
+const JOIN_MAX_SPREAD: f32 = 1.0;
+
+/// The second joining stage: clusters whose robust fits overlap (a crescent that DBSCAN also
+/// tied to a little clutter or noise, which the algebraic test of [`join_crescents`] cannot
+/// see past, or two sparse crescents each fitted as a smaller circle) are fitted as one; the
+/// join stands when that fit is good (spread within [`JOIN_MAX_SPREAD`]). The events of the
+/// later cluster are moved next to the earlier one's. Returns how many were joined.
+fn join_fitted<const C: usize>(
+    events: &mut [WindowEvent],
+    ranges: &mut heapless::Vec<ClusterRange, C>,
+    fits: &mut heapless::Vec<Option<Centre>, C>,
+    t_ref: u32,
+    cfg: &FitConfig,
+) -> u16 {
+    let mut merged = 0u16;
+    let mut i = 0;
+    while i < ranges.len() {
+        let mut j = i + 1;
+        let mut grew = false;
+        while j < ranges.len() {
+            let (Some(a), Some(b)) = (fits.get(i).copied().flatten(), fits.get(j).copied().flatten()) else {
+                j += 1;
+                continue;
+            };
+            if !overlapping(&a, &b) {
+                j += 1;
+                continue;
+            }
+            let (ri, rj) = (ranges[i], ranges[j]);
+            let union = fit_from(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg);
+            let Some(u) = union.filter(|u| u.spread <= JOIN_MAX_SPREAD) else {
+                j += 1;
+                continue;
+            };
+            // Ranges are in event order: rotate j's events to just after i's.
+            let len_j = rj.end - rj.start;
+            if let Some(seg) = events.get_mut(usize::from(ri.end)..usize::from(rj.end)) {
+                seg.rotate_right(usize::from(len_j));
+            }
+            for r in ranges.iter_mut().take(j).skip(i + 1) {
+                r.start += len_j;
+                r.end += len_j;
+            }
+            ranges[i].end += len_j;
+            ranges.remove(j);
+            fits.remove(j);
+            fits[i] = Some(u);
+            merged += 1;
+            grew = true;
+        }
+        // The union's fit may now overlap clusters passed over before.
+        if !grew {
+            i += 1;
+        }
+    }
+    merged
+}
+
+/// How far from a fitted circle, px, an event DBSCAN left out may be and still be taken as
+/// the circle's: some three times the edge's own spread.
+const RECRUIT_GATE: f32 = 2.0;
+/// Rounds of recruiting: a circle fitted to one crescent can be a pixel or two off, and the
+/// events of the other side reach it only once a first round has brought it closer.
+const RECRUIT_ROUNDS: usize = 2;
+
+/// Gives every fitted circle the events DBSCAN left as noise that lie on it, and fits it
+/// again with them. Where a circle's edge barely moves, it fires sparsely: DBSCAN finds the
+/// dense crescent and calls the rest noise, and a fit to that one crescent misplaces the
+/// centre along the crescent's axis. Events within [`RECRUIT_GATE`] of the circle (moving
+/// with its velocity) join the fit when there are at least a tenth as many as it has; the
+/// fit starts from the circle found so far. The noise events are sorted by pixel once, so
+/// each circle searches only the rows it spans; at most [`MAX_RECRUITS`] events per circle.
+fn recruit<const C: usize>(
+    events: &mut [WindowEvent],
+    ranges: &heapless::Vec<ClusterRange, C>,
+    fits: &mut heapless::Vec<Option<Centre>, C>,
+    t_ref: u32,
+    cfg: &FitConfig,
+) {
+    let clustered = ranges.iter().map(|r| usize::from(r.end)).max().unwrap_or(0);
+    let Some(noise) = events.get_mut(clustered..) else { return };
+    noise.sort_unstable_by_key(pixel_order);
+    let (events, noise) = events.split_at(clustered);
+    let t_ref_ms = t_ref as f32 * 1e-3;
+    let mut found = [WindowEvent::default(); MAX_RECRUITS];
+    for (r, f) in ranges.iter().zip(fits.iter_mut()) {
+        for _round in 0..RECRUIT_ROUNDS {
+            let Some(c) = *f else { continue };
+            let part = slice(events, r);
+            // The rows the circle sweeps over the window, with the gate.
+            let (t_lo, t_hi) = part.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e.dt_us), hi.max(e.dt_us)));
+            let reach = c.r + RECRUIT_GATE + c.vv.abs() * (t_hi.saturating_sub(t_lo) as f32 * 1e-3) + 1.0;
+            let (y_lo, y_hi) = ((c.v - reach).max(0.0) as u16, (c.v + reach).min(65535.0) as u16);
+            let lo = noise.partition_point(|e| e.y < y_lo);
+            let hi = noise.partition_point(|e| e.y <= y_hi);
+            let mut k = 0;
+            for e in &noise[lo..hi] {
+                let t = e.dt_us as f32 * 1e-3 - t_ref_ms;
+                let (dx, dy) = (f32::from(e.x) - c.u - c.vu * t, f32::from(e.y) - c.v - c.vv * t);
+                if (libm::sqrtf(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
+                    found[k] = *e;
+                    k += 1;
+                }
+            }
+            if k == 0 || k * 10 < part.len() {
+                continue;
+            }
+            let start = Circle { u: c.u, v: c.v, vu: c.vu, vv: c.vv, r: c.r, rms: c.spread };
+            match fit_from(&[part, &found[..k]], Some(start), t_ref, cfg) {
+                Some(better) => *f = Some(better),
+                None => break,
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod test {
+    use super::*;
+    use proptest::prelude::*;
+    use std::vec::Vec;
+
+    /// Events on rings (two crescents each, moving) plus scattered noise.
+    fn scene(circles: &[(f32, f32, f32)], per_circle: usize, noise: usize, seed: u32) -> Vec<Event> {
+        let mut s = seed | 1;
+        let mut rnd = move || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            (s >> 8) as f32 / (1u32 << 24) as f32
+        };
+        let mut out = Vec::new();
+        for _ in 0..per_circle {
+            for &(cx, cy, r) in circles {
+                let t = rnd() * 4000.0;
+                // Crescents: angles near the motion axis (x), edge spread ±0.5 px.
+                let a = (rnd() - 0.5) * 2.2 + if rnd() < 0.5 { 0.0 } else { core::f32::consts::PI };
+                let rr = r + rnd() - 0.5;
+                let x = cx + 0.2e-3 * t + rr * libm::cosf(a);
+                let y = cy + rr * libm::sinf(a);
+                out.push(Event { t_us: t as u64, x: x.round() as u16, y: y.round() as u16, polarity: true });
+            }
+        }
+        for _ in 0..noise {
+            let t = rnd() * 4000.0;
+            out.push(Event { t_us: t as u64, x: (rnd() * 340.0) as u16, y: (rnd() * 255.0) as u16, polarity: false });
+        }
+        out.sort_by_key(|e| e.t_us);
+        out
+    }
+
+    #[test]
+    fn finds_every_ring_of_a_clean_scene() {
+        let circles =
+            [(60.0, 60.0, 7.0), (120.0, 60.0, 7.0), (180.0, 60.0, 7.5), (60.0, 150.0, 6.5), (150.0, 170.0, 9.0)];
+        let events = scene(&circles, 150, 200, 7);
+        let mut cfg = DetectConfig::new(SensorSize::DAVIS346);
+        cfg.window = WindowConfig { events: events.len(), step_us: 0 };
+        let mut det: Detector<1024, 32> = Detector::new(cfg);
+        let mut found = None;
+        for e in &events {
+            if let Some(d) = det.push(*e) {
+                found = Some(d.clone());
+            }
+        }
+        let d = found.expect("one window");
+        // The centres are given at the window's middle: the rings moved 0.2 px/ms.
+        let mid = (d.info.t_ref_us - d.info.t_first_us) as f32 * 1e-3;
+        for &(cx, cy, r) in &circles {
+            let best = d
+                .centres
+                .iter()
+                .map(|c| ((c.u - cx - 0.2 * mid).powi(2) + (c.v - cy).powi(2)).sqrt())
+                .fold(f32::INFINITY, f32::min);
+            assert!(best < 0.25, "ring at ({cx}, {cy}) r {r}: nearest centre {best} px away; {:?}", d.centres);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+
+        /// Any stream of events: no panic, windows as configured, finite centres.
+        #[test]
+        fn any_stream_gives_consistent_windows(
+            raw in prop::collection::vec((0u16..400, 0u16..300, 0u32..300, any::<bool>()), 0..3000),
+            per_window in 1usize..800,
+            eps in 0.0f32..0.1,
+            min_pts in 0u16..15,
+        ) {
+            let mut cfg = DetectConfig::new(SensorSize::DAVIS346);
+            cfg.window = WindowConfig { events: per_window, step_us: 2_000 };
+            cfg.cluster = ClusterConfig { eps, min_pts, eps_t: None };
+            let mut det: Detector<1024, 16> = Detector::new(cfg);
+            let mut t = 0u64;
+            for (x, y, dt, p) in raw {
+                t += u64::from(dt);
+                if let Some(d) = det.push(Event { t_us: t, x, y, polarity: p }) {
+                    prop_assert_eq!(usize::from(d.stats.events), per_window.min(1024));
+                    prop_assert!(d.info.t_first_us <= d.info.t_ref_us && d.info.t_ref_us <= d.info.t_last_us);
+                    prop_assert!(d.centres.len() <= 16);
+                    for c in &d.centres {
+                        prop_assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// In-place reconfiguration and the clock's window hooks.
+#[cfg(test)]
+mod reconfigure_and_hooks {
     use super::*;
     use crate::window::WindowConfig;
 

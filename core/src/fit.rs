@@ -21,7 +21,7 @@
 //! host and the Cortex-M4F compute the same bits.
 
 use crate::{
-    arc::{Circle, Moments},
+    arc::{solve_spd, Circle, Moments},
     window::WindowEvent,
 };
 
@@ -106,22 +106,29 @@ const HIST_BINS: usize = 64;
 ///
 /// Cost: a few passes over the events per iteration, no allocation, no recursion.
 pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
-    fit_from(events, None, t_ref_us, cfg)
+    fit_from(&[events], None, t_ref_us, cfg)
 }
 
-/// [`fit`], started from `start`, the algebraic circle through the events when the caller
-/// has it already (see [`Moments`](crate::arc::Moments)); `None` computes it.
-pub fn fit_from(events: &[WindowEvent], start: Option<Circle>, t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
-    let n = events.len();
+/// [`fit`] of the events of all of `parts` together, started from `start`, the algebraic
+/// circle through them when the caller has it already (see [`Moments`]); `None` computes
+/// it.
+pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
+    let n: usize = parts.iter().map(|p| p.len()).sum();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
     }
-    let frame = Frame::of(&[events]);
+    let frame = Frame::of(parts);
     let result = match cfg.method {
-        FitMethod::Centroid => centroid(events, &frame),
+        FitMethod::Centroid => centroid(parts, &frame),
         FitMethod::Ols | FitMethod::Erwls => {
-            let start = start.or_else(|| Moments::of(events).circle())?;
-            cylinder(events, &frame, &start, cfg)
+            let start = start.or_else(|| {
+                let mut m = Moments::of(parts[0], t_ref_us);
+                for p in &parts[1..] {
+                    m.add(&Moments::of(p, t_ref_us));
+                }
+                m.circle()
+            })?;
+            cylinder(parts, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
         }
     }?;
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
@@ -207,17 +214,18 @@ impl Frame {
     }
 }
 
-fn centroid(events: &[WindowEvent], f: &Frame) -> Option<Local> {
-    let inv_n = 1.0 / events.len() as f32;
+fn centroid(parts: &[&[WindowEvent]], f: &Frame) -> Option<Local> {
+    let events = || parts.iter().flat_map(|p| p.iter());
+    let inv_n = 1.0 / events().count().max(1) as f32;
     let (mut sx, mut sy) = (0.0f32, 0.0f32);
-    for e in events {
+    for e in events() {
         let (x, y, _) = f.local(e);
         sx += x;
         sy += y;
     }
     let (u, v) = (sx * inv_n, sy * inv_n);
     let (mut sd, mut sd2) = (0.0f32, 0.0f32);
-    for e in events {
+    for e in events() {
         let (x, y, _) = f.local(e);
         let d = libm::sqrtf((x - u) * (x - u) + (y - v) * (y - v));
         sd += d;
@@ -318,7 +326,7 @@ struct Pass {
     hist: Histogram,
 }
 
-fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
+fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
     let mut hist = Histogram::new();
     let [u, v, va, vb, r] = *p;
     // J = −(cx, cy, cx·τ, cy·τ, 1) for the unit direction (cx, cy) from the centre: JᵀWJ is
@@ -328,7 +336,7 @@ fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
         (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
     let (mut sx, mut sy, mut sxt, mut syt, mut sw) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
     let (mut gx, mut gy, mut gxt, mut gyt, mut g1, mut swe2) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    for e in events {
+    for e in parts.iter().flat_map(|p| p.iter()) {
         let (x, y, t) = f.local(e);
         let dx = x - u - va * t;
         let dy = y - v - vb * t;
@@ -385,9 +393,13 @@ fn pass(events: &[WindowEvent], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
 /// parameters, the weighted normal equations, one step). The kernel width follows the
 /// residuals' median (one iteration behind, from the same pass). The tilt is fitted only for
 /// clusters of at least [`TILT_MIN_EVENTS`].
-fn cylinder(events: &[WindowEvent], f: &Frame, start: &Circle, cfg: &FitConfig) -> Option<Local> {
-    let mut p = [start.u - f.x0, start.v - f.y0, 0.0, 0.0, start.r];
-    let tilt = events.len() >= TILT_MIN_EVENTS && f.t_reach > 0.0;
+fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, cfg: &FitConfig) -> Option<Local> {
+    let n: usize = parts.iter().map(|p| p.len()).sum();
+    let tilt = n >= TILT_MIN_EVENTS && f.t_reach > 0.0;
+    // The start's centre moved to the cluster's mean time, the origin of the local frame.
+    let lead = f.tc - t_ref_ms;
+    let (a, b) = if tilt { (start.vu, start.vv) } else { (0.0, 0.0) };
+    let mut p = [start.u + start.vu * lead - f.x0, start.v + start.vv * lead - f.y0, a, b, start.r];
     let reweight = cfg.method == FitMethod::Erwls;
     // The start's RMS residual is not robust (clutter in the cluster inflates it), but it only
     // sets the first iteration's kernel: the histogram of that pass sets the next one.
@@ -396,7 +408,7 @@ fn cylinder(events: &[WindowEvent], f: &Frame, start: &Circle, cfg: &FitConfig) 
     let mut spread = f32::INFINITY;
     let mut it = 0usize;
     while it < usize::from(cfg.max_iterations) {
-        let ps = pass(events, f, &p, &w);
+        let ps = pass(parts, f, &p, &w);
         if ps.sw > 0.0 {
             spread = libm::sqrtf(ps.swe2 / ps.sw);
         }
@@ -443,46 +455,6 @@ fn cylinder(events: &[WindowEvent], f: &Frame, start: &Circle, cfg: &FitConfig) 
         it += 1;
     }
     Some(Local { p, spread, converged })
-}
-
-/// Solves `M x = b` for symmetric positive definite `M` given by its lower triangle
-/// (Cholesky). `None` when `M` is not positive definite to f32 precision.
-// Index loops read as the textbook algorithm; iterator chains would hide it.
-#[allow(clippy::needless_range_loop)]
-fn solve_spd<const K: usize>(mut m: [[f32; K]; K], mut b: [f32; K]) -> Option<[f32; K]> {
-    for j in 0..K {
-        let mut d = m[j][j];
-        for k in 0..j {
-            d -= m[j][k] * m[j][k];
-        }
-        if d.is_nan() || d <= 0.0 || d.is_infinite() {
-            return None;
-        }
-        let d = libm::sqrtf(d);
-        m[j][j] = d;
-        for i in j + 1..K {
-            let mut s = m[i][j];
-            for k in 0..j {
-                s -= m[i][k] * m[j][k];
-            }
-            m[i][j] = s / d;
-        }
-    }
-    for i in 0..K {
-        let mut s = b[i];
-        for k in 0..i {
-            s -= m[i][k] * b[k];
-        }
-        b[i] = s / m[i][i];
-    }
-    for i in (0..K).rev() {
-        let mut s = b[i];
-        for k in i + 1..K {
-            s -= m[k][i] * b[k];
-        }
-        b[i] = s / m[i][i];
-    }
-    Some(b)
 }
 
 /// `exp(−z)` for `0 ≤ z ≤ MAX_WEIGHT_EXPONENT`, to about 2e-6 relative: 2^(−z·log₂e) split
