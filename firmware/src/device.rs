@@ -169,6 +169,7 @@ const RX_CHUNK: usize = 64;
 /// session) rather than from the host's event batches.
 fn protocol(board: &mut BoardImpl, mut local: Option<impl EventSource>) -> bool {
     let Some(dev) = protocol_device() else { return false };
+    log_info!("protocol over the UART: {=usize} events per window at most", evcal_core::config::MAX_EVENTS_PER_WINDOW);
     let mut clock = MarkedClock(board.clock());
     let mut rx = [0u8; RX_CHUNK];
     let (mut start, mut end) = (0, 0);
@@ -182,7 +183,13 @@ fn protocol(board: &mut BoardImpl, mut local: Option<impl EventSource>) -> bool 
         // session's first frame received) and the device has answered it.
         if local.is_some() && dev.stats().frames_received > 0 && dev.is_idle() {
             if let Some(src) = local.take() {
+                log_info!("session configured: reading the local event source");
                 let end = drain(dev, src, board, &mut clock);
+                log_info!(
+                    "local event source done: {=u64} events, {=u32} windows",
+                    dev.stats().events_received,
+                    dev.stats().windows
+                );
                 if end != SourceError::End {
                     board::report(format_args!("evcal firmware: local event source: {end}"));
                 }

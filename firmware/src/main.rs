@@ -15,6 +15,16 @@ fn main() {
     std::process::exit(2);
 }
 
+// Logging: defmt with the `defmt` feature, nothing without (the arguments are still
+// evaluated for type checks, not formatted). Must come before the modules that log.
+#[cfg(target_os = "none")]
+macro_rules! log_info {
+    ($($arg:tt)*) => {{
+        #[cfg(feature = "defmt")]
+        defmt::info!($($arg)*);
+    }};
+}
+
 #[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
 mod bench;
 #[cfg(target_os = "none")]
@@ -59,6 +69,7 @@ fn main() -> ! {
     // `take` succeeds exactly once, and this is the first call.
     let Some(cp) = cortex_m::Peripherals::take() else { board::exit(false) };
     let board = board::init(cp);
+    log_info!("evcal firmware up: core clock {=u32} Hz", board::CLOCK_HZ);
     let ok = device::run(board);
     board::exit(ok)
 }
