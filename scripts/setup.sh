@@ -23,6 +23,23 @@ if ! dpkg -s qemu-system-arm >/dev/null 2>&1; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends qemu-system-arm >/dev/null
 fi
 
+# Independent writers of the recording formats (scripts/make-format-fixtures.py): iniVation's
+# dv-processing (AEDAT4), rosbags (ROS1 bags), h5py and hdf5plugin (HDF5, Blosc as DSEC
+# uses it), at the versions that wrote the committed fixtures. pip also fetches faery's test
+# recordings (scripts/fetch-faery.sh).
+writers=(dv-processing==2.0.4 rosbags==0.11.9 h5py==3.16.0 hdf5plugin==7.1.0)
+if ! python3 - "${writers[@]}" >/dev/null 2>&1 <<'PY'
+import importlib.metadata as m, sys
+for w in sys.argv[1:]:
+    name, version = w.split("==")
+    if m.version(name) != version:
+        sys.exit(1)
+PY
+then
+  echo "setup: installing Python packages: ${writers[*]} numpy"
+  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" numpy
+fi
+
 # The core and the firmware build for the Cortex-M4F.
 if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
   echo "setup: adding rustup target thumbv7em-none-eabihf"

@@ -33,8 +33,13 @@ step "test data: faery's real recordings (fetched, not committed), Prophesee fix
 bash scripts/fetch-faery.sh >/dev/null
 python3 tests/fixtures/prophesee/make.py --check
 
-step "tests (host: unit, property, end to end)"
-cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
+step "tests (host: unit, property, end to end; real recordings required)"
+EVCAL_REQUIRE_TEST_DATA=1 cargo test --workspace --no-fail-fast 2>&1 | tee target/test-output.txt
+
+step "recordings written again by dv-processing, rosbags, h5py (versions pinned in setup.sh), read again"
+python3 scripts/make-format-fixtures.py target/test-data/formats-fresh
+EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test formats 2>&1 \
+  | tee -a target/test-output.txt
 
 step "fuzz the EVT decoders (cargo-fuzz, nightly; 15 s a target)"
 bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-15}"

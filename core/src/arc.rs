@@ -141,6 +141,9 @@ impl Moments {
     fn about(&self, origin: [f32; 2]) -> [f32; 31] {
         let dx = origin[0] - self.origin[0];
         let dy = origin[1] - self.origin[1];
+        if dx == 0.0 && dy == 0.0 {
+            return self.sums;
+        }
         let mut px = [1.0f32; 5];
         let mut py = [1.0f32; 5];
         for k in 1..5 {
@@ -171,15 +174,15 @@ impl Moments {
     /// Kåsa's moving circle through the events of `self`, or `None` when they are too few or
     /// on a line.
     pub fn circle(&self) -> Option<Circle> {
-        fit_about(&[self.about(self.origin)], self.origin).map(|(c, _)| c)
+        fit_about(&[self.sums], self.origin).map(|(c, _)| c)
     }
 
     /// Kåsa's moving circle through the union of the events of `self` and `other`, and the RMS
     /// distance of each set's events from it (`(circle, rms_self, rms_other)`).
     pub fn joint_circle(&self, other: &Moments) -> Option<(Circle, f32, f32)> {
-        let origin = [(self.origin[0] + other.origin[0]) * 0.5, (self.origin[1] + other.origin[1]) * 0.5];
-        let (a, b) = (self.about(origin), other.about(origin));
-        let (c, theta) = fit_about(&[a, b], origin)?;
+        // About `self`'s origin: the union spans a few tens of pixels from it.
+        let (a, b) = (self.sums, other.about(self.origin));
+        let (c, theta) = fit_about(&[a, b], self.origin)?;
         Some((c, rms(&a, &theta, c.r), rms(&b, &theta, c.r)))
     }
 }

@@ -175,6 +175,78 @@ pub fn pixel_order(e: &WindowEvent) -> u64 {
     (u64::from(pixel(e)) << 32) | u64::from(e.dt_us)
 }
 
+/// Sorts events into [`pixel_order`] in place, in time linear in the events for the short
+/// rows of an event window: rows are bucketed by an in-place radix pass on each byte of the
+/// row (American flag sort), then each row is sorted by column and time, by insertion when
+/// short (the usual case) and by the library's sort otherwise.
+pub fn sort_by_pixel(events: &mut [WindowEvent]) {
+    let mut high = [0u16; 257];
+    flag_pass(events, |e| (e.y >> 8) as u8, &mut high);
+    let mut low = [0u16; 257];
+    for h in 0..256 {
+        let (a, b) = (usize::from(high[h]), usize::from(high[h + 1]));
+        let Some(part) = events.get_mut(a..b) else { continue };
+        if part.len() < 2 {
+            continue;
+        }
+        flag_pass(part, |e| e.y as u8, &mut low);
+        for l in 0..256 {
+            let Some(row) = part.get_mut(usize::from(low[l])..usize::from(low[l + 1])) else { continue };
+            if row.len() <= 24 {
+                insertion_sort(row);
+            } else {
+                row.sort_unstable_by_key(pixel_order);
+            }
+        }
+    }
+}
+
+/// One in-place radix pass: reorders `events` by `key` and writes the 256 buckets'
+/// boundaries (`bounds[k]..bounds[k + 1]`). `events` holds fewer than 65 536 events.
+fn flag_pass(events: &mut [WindowEvent], key: impl Fn(&WindowEvent) -> u8, bounds: &mut [u16; 257]) {
+    let mut count = [0u16; 256];
+    for e in events.iter() {
+        let k = usize::from(key(e));
+        count[k] = count[k].wrapping_add(1);
+    }
+    let mut next = [0u16; 256];
+    let mut at = 0u16;
+    for k in 0..256 {
+        bounds[k] = at;
+        next[k] = at;
+        at = at.wrapping_add(count[k]);
+    }
+    bounds[256] = at;
+    for k in 0..256 {
+        let end = usize::from(bounds[k + 1]);
+        while usize::from(next[k]) < end {
+            let i = usize::from(next[k]);
+            let target = usize::from(key(&events[i]));
+            if target == k {
+                next[k] += 1;
+            } else {
+                // Each swap puts one event in its bucket for good, so this ends.
+                let j = usize::from(next[target]);
+                events.swap(i, j);
+                next[target] += 1;
+            }
+        }
+    }
+}
+
+fn insertion_sort(row: &mut [WindowEvent]) {
+    for i in 1..row.len() {
+        let e = row[i];
+        let key = pixel_order(&e);
+        let mut j = i;
+        while j > 0 && pixel_order(&row[j - 1]) > key {
+            row[j] = row[j - 1];
+            j -= 1;
+        }
+        row[j] = e;
+    }
+}
+
 /// A run of events sharing one pixel row, `events[start..end]`, sorted by column.
 #[derive(Clone, Copy, Default)]
 struct Row {
@@ -316,7 +388,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         self.clusters = 0;
         let duration = events.iter().map(|e| e.dt_us).max().unwrap_or(0);
         let m = Metric::new(sensor, cfg, duration);
-        events.sort_unstable_by_key(pixel_order);
+        sort_by_pixel(events);
         let min_pts = usize::from(cfg.min_pts.max(1));
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
@@ -651,6 +723,10 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     }
 
     fn union(&mut self, a: usize, b: usize) {
+        // Most links join points already in one set, often through the same parent.
+        if self.labels[a] & MASK == self.labels[b] & MASK {
+            return;
+        }
         let ra = self.find(a);
         let rb = self.find(b);
         if ra == rb {
@@ -836,6 +912,15 @@ mod test {
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(200))]
+
+        #[test]
+        fn radix_sort_sorts(raw in prop::collection::vec((any::<u16>(), 0u16..700, 0u32..50), 0..2000)) {
+            let mut ev: Vec<WindowEvent> = raw.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
+            let mut want = ev.clone();
+            want.sort_by_key(pixel_order);
+            sort_by_pixel(&mut ev);
+            prop_assert_eq!(ev, want);
+        }
 
         #[test]
         fn wide_neighbourhoods_equal_brute_force(

@@ -6,11 +6,12 @@
 
 use crate::{
     arc::{Circle, Moments},
-    cluster::pixel_order,
+    cluster::sort_by_pixel,
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
     config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
     fit::{fit_from, Centre, FitConfig},
+    math::sqrt,
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
 
@@ -452,7 +453,7 @@ fn recruit<const C: usize>(
 ) {
     let clustered = ranges.iter().map(|r| usize::from(r.end)).max().unwrap_or(0);
     let Some(noise) = events.get_mut(clustered..) else { return };
-    noise.sort_unstable_by_key(pixel_order);
+    sort_by_pixel(noise);
     let (events, noise) = events.split_at(clustered);
     let t_ref_ms = t_ref as f32 * 1e-3;
     let mut found = [WindowEvent::default(); MAX_RECRUITS];
@@ -470,7 +471,7 @@ fn recruit<const C: usize>(
             for e in &noise[lo..hi] {
                 let t = e.dt_us as f32 * 1e-3 - t_ref_ms;
                 let (dx, dy) = (f32::from(e.x) - c.u - c.vu * t, f32::from(e.y) - c.v - c.vv * t);
-                if (libm::sqrtf(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
+                if (sqrt(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
                     found[k] = *e;
                     k += 1;
                 }

@@ -22,6 +22,7 @@
 
 use crate::{
     arc::{solve_spd, Circle, Moments},
+    math::{exp_neg, inv_sqrt, sqrt},
     window::WindowEvent,
 };
 
@@ -128,6 +129,13 @@ pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, 
                 }
                 m.circle()
             })?;
+            // A start larger than the events' extent, or centred far outside them, is the
+            // algebraic fit of a nearly straight edge: no circle, and no fit will make one.
+            let extent = 2.0 * frame.half_w.max(frame.half_h) + 1.0;
+            let (du, dv) = ((start.u - frame.x0).abs(), (start.v - frame.y0).abs());
+            if start.r > 2.0 * extent || du > frame.half_w + 2.0 * start.r || dv > frame.half_h + 2.0 * start.r {
+                return None;
+            }
             cylinder(parts, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
         }
     }?;
@@ -227,12 +235,12 @@ fn centroid(parts: &[&[WindowEvent]], f: &Frame) -> Option<Local> {
     let (mut sd, mut sd2) = (0.0f32, 0.0f32);
     for e in events() {
         let (x, y, _) = f.local(e);
-        let d = libm::sqrtf((x - u) * (x - u) + (y - v) * (y - v));
+        let d = sqrt((x - u) * (x - u) + (y - v) * (y - v));
         sd += d;
         sd2 += d * d;
     }
     let r = sd * inv_n;
-    let spread = libm::sqrtf((sd2 * inv_n - r * r).max(0.0));
+    let spread = sqrt((sd2 * inv_n - r * r).max(0.0));
     // The centroid has no time model: it is the centre of the events' mean time, and `tc`
     // is undone in `accept` with zero velocity.
     Some(Local { p: [u, v, 0.0, 0.0, r], spread, converged: true })
@@ -287,32 +295,11 @@ impl Histogram {
     }
 }
 
-#[inline]
-fn dist(dx: f32, dy: f32) -> f32 {
-    libm::sqrtf(dx * dx + dy * dy)
-}
-
 /// The residual weights of one pass: a Gaussian of width `sigma`, or all ones.
 #[derive(Clone, Copy)]
 struct Weights {
     reweight: bool,
     sigma: f32,
-}
-
-impl Weights {
-    #[inline]
-    fn of(&self, xi: f32) -> f32 {
-        if !self.reweight {
-            return 1.0;
-        }
-        let d = xi / self.sigma;
-        let z = 0.5 * d * d;
-        if z > MAX_WEIGHT_EXPONENT {
-            0.0
-        } else {
-            exp_neg(z)
-        }
-    }
 }
 
 /// What one pass over the events at parameters `p` gives: the weighted normal equations
@@ -326,9 +313,27 @@ struct Pass {
     hist: Histogram,
 }
 
-fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass {
+fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool) -> Pass {
+    // Copies of the loop: a still circle needs neither the time columns nor their sums (and
+    // most clusters are fitted still), and plain least squares no weights.
+    match (tilt, w.reweight) {
+        (true, true) => pass_with::<true, true>(parts, f, p, w),
+        (true, false) => pass_with::<true, false>(parts, f, p, w),
+        (false, true) => pass_with::<false, true>(parts, f, p, w),
+        (false, false) => pass_with::<false, false>(parts, f, p, w),
+    }
+}
+
+fn pass_with<const TILT: bool, const REWEIGHT: bool>(
+    parts: &[&[WindowEvent]],
+    f: &Frame,
+    p: &[f32; 5],
+    w: &Weights,
+) -> Pass {
     let mut hist = Histogram::new();
     let [u, v, va, vb, r] = *p;
+    // exp(−ξ²/2σ²) with the division done once.
+    let scale = 0.5 / (w.sigma * w.sigma);
     // J = −(cx, cy, cx·τ, cy·τ, 1) for the unit direction (cx, cy) from the centre: JᵀWJ is
     // made of the weighted sums of cx², cx·cy, cy² times 1, τ, τ², of cx, cy times 1, τ, and
     // of w; JᵀWξ of wξ times cx, cy, cx·τ, cy·τ, 1. Locals keep all of them in registers.
@@ -338,44 +343,53 @@ fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights) -> Pass 
     let (mut gx, mut gy, mut gxt, mut gyt, mut g1, mut swe2) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
     for e in parts.iter().flat_map(|p| p.iter()) {
         let (x, y, t) = f.local(e);
-        let dx = x - u - va * t;
-        let dy = y - v - vb * t;
-        let d = dist(dx, dy);
-        let xi = d - r;
-        hist.add(xi.abs());
-        if d <= 0.0 {
+        let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
+        let q = dx * dx + dy * dy;
+        // NaN compares false: `q > 0` and finite below.
+        if q.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            hist.add(r.abs());
             continue; // on the axis: no direction, no information about the centre
         }
-        let wi = w.of(xi);
-        if wi == 0.0 {
-            continue;
-        }
-        let inv = 1.0 / d;
+        let inv = inv_sqrt(q);
+        let d = q * inv;
+        let xi = d - r;
+        hist.add(xi.abs());
+        let wi = if REWEIGHT {
+            let z = xi * xi * scale;
+            if z > MAX_WEIGHT_EXPONENT {
+                continue;
+            }
+            exp_neg(z)
+        } else {
+            1.0
+        };
         let (cx, cy) = (dx * inv, dy * inv);
         let (wx, wy) = (wi * cx, wi * cy);
         let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
         sxx += wxx;
         sxy += wxy;
         syy += wyy;
-        sxxt += wxx * t;
-        sxyt += wxy * t;
-        syyt += wyy * t;
-        let tt = t * t;
-        sxxtt += wxx * tt;
-        sxytt += wxy * tt;
-        syytt += wyy * tt;
         sx += wx;
         sy += wy;
-        sxt += wx * t;
-        syt += wy * t;
         sw += wi;
         let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
         gx += wxxi;
         gy += wyxi;
-        gxt += wxxi * t;
-        gyt += wyxi * t;
         g1 += wxi;
         swe2 += wxi * xi;
+        if TILT {
+            sxxt += wxx * t;
+            sxyt += wxy * t;
+            syyt += wyy * t;
+            let tt = t * t;
+            sxxtt += wxx * tt;
+            sxytt += wxy * tt;
+            syytt += wyy * tt;
+            sxt += wx * t;
+            syt += wy * t;
+            gxt += wxxi * t;
+            gyt += wyxi * t;
+        }
     }
     // Signs: each entry is a product of two components of J, each carrying a minus sign.
     let a = [
@@ -408,9 +422,9 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
     let mut spread = f32::INFINITY;
     let mut it = 0usize;
     while it < usize::from(cfg.max_iterations) {
-        let ps = pass(parts, f, &p, &w);
+        let ps = pass(parts, f, &p, &w, tilt);
         if ps.sw > 0.0 {
-            spread = libm::sqrtf(ps.swe2 / ps.sw);
+            spread = sqrt(ps.swe2 / ps.sw);
         }
         // A small Marquardt damping, with a floor, keeps a velocity the window cannot observe
         // at zero rather than making the system singular.
@@ -434,7 +448,7 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
             }
         }
         let Some(mut step) = solve_spd::<5>(a, rhs) else { break };
-        let moved = libm::sqrtf(step[0] * step[0] + step[1] * step[1]);
+        let moved = sqrt(step[0] * step[0] + step[1] * step[1]);
         let limit = MAX_STEP_FRACTION * p[4].abs().max(1.0);
         if moved > limit || !moved.is_finite() {
             let shrink = if moved.is_finite() { limit / moved } else { 0.0 };
@@ -455,26 +469,6 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
         it += 1;
     }
     Some(Local { p, spread, converged })
-}
-
-/// `exp(−z)` for `0 ≤ z ≤ MAX_WEIGHT_EXPONENT`, to about 2e-6 relative: 2^(−z·log₂e) split
-/// into an integer power (built in the exponent bits) and a polynomial for the fraction.
-/// A tenth of libm's `expf` on the M4F, and plain f32 arithmetic, so identical everywhere.
-#[inline]
-fn exp_neg(z: f32) -> f32 {
-    let y = -z * core::f32::consts::LOG2_E; // in [−26, 0]
-                                            // floor(y) for y ≤ 0 without a library call: truncation rounds towards zero.
-    let trunc = y as i32;
-    let k = if (trunc as f32) > y { trunc - 1 } else { trunc } as f32;
-    let fpart = y - k; // [0, 1)
-                       // 2^f = e^(f·ln2) on [0, 1): Taylor to degree 7, whose remainder is below 2e-6 there.
-    let t = fpart * core::f32::consts::LN_2;
-    let poly = 1.0
-        + t * (1.0
-            + t * (0.5
-                + t * (1.0 / 6.0 + t * (1.0 / 24.0 + t * (1.0 / 120.0 + t * (1.0 / 720.0 + t * (1.0 / 5040.0)))))));
-    let scale = f32::from_bits(((k as i32 + 127) as u32) << 23);
-    poly * scale
 }
 
 #[cfg(test)]
@@ -611,15 +605,6 @@ mod tests {
         assert_eq!(fit(&line, 0, &FitConfig::default()), None);
         let point = vec![WindowEvent { x: 7, y: 7, dt_us: 3 }; 100];
         assert_eq!(fit(&point, 0, &FitConfig::default()), None);
-    }
-
-    #[test]
-    fn fast_exponential_matches() {
-        for i in 0..=1800 {
-            let z = i as f32 * 0.01;
-            let (got, want) = (exp_neg(z) as f64, (-(z as f64)).exp());
-            assert!(((got - want) / want).abs() < 3e-6, "z {z}: {got} vs {want}");
-        }
     }
 
     proptest! {

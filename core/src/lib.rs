@@ -47,5 +47,6 @@ pub mod detect;
 pub mod event;
 pub mod evt;
 pub mod fit;
+mod math;
 pub mod window;
 pub mod wire;

@@ -26,8 +26,12 @@ impl H5Reader {
         let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
         let ds = file.dataset("events_data").map_err(|_| {
             let names = file.member_names().unwrap_or_default().join(", ");
-            err(format!("no dataset 'events_data' (E-Calib layout: N x 4 [x, y, p, t]); the file has: [{names}]"))
+            err(format!(
+                "no event layout evcal knows: neither 'events_data' (E-Calib: N x 4 [x, y, p, t]) nor \
+                 datasets x, y, t, p in 'events/' or at the root; the file has: [{names}]"
+            ))
         })?;
+        super::h5cols::check_filters(&ds).map_err(|m| err(format!("'events_data': {m}")))?;
         let shape = ds.shape();
         if shape.len() != 2 || shape[1] != 4 {
             return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));

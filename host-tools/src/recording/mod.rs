@@ -4,11 +4,19 @@
 //! with the file and the line or offset where it is, never a panic. The format is chosen by
 //! content and extension ([`Format::detect`]).
 
+mod aedat4;
+mod bag;
+mod codec;
+mod flatbuf;
 mod h5;
+mod h5cols;
 pub mod prophesee;
 mod text;
 
+pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
+pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use h5::{write_ecalib_h5, H5Reader};
+pub use h5cols::{H5ColumnsReader, TimeUnit};
 pub use text::{write_text, TextReader};
 
 use evcal_core::{
@@ -28,18 +36,34 @@ pub enum Format {
     PropheseeRaw(Encoding),
     /// Prophesee `.dat` of CD events: a `%` header, then 8-byte records.
     PropheseeDat,
+    /// iniVation DV / dv-processing AEDAT 4.0 (the event stream; frames, IMU, triggers skipped).
+    Aedat4,
+    /// ROS1 bag (format 2.0) with `dvs_msgs/EventArray` messages.
+    RosBag,
+    /// HDF5 with a group `events` of datasets `x`, `y`, `t`, `p` (DSEC and others).
+    EventsGroupH5,
+    /// HDF5 with datasets `x`, `y`, `p`, `t` at the root (e2calib).
+    RootColumnsH5,
 }
 
 impl Format {
-    /// Chooses the format of `path` by its first bytes (the HDF5 signature), falling back on
-    /// the extension.
+    /// Chooses the format of `path` by its first bytes (the HDF5 signature, AEDAT4's
+    /// `#!AER-DAT4.0`, `#ROSBAG V`), falling back on the extension.
     pub fn detect(path: &Path) -> Result<Self, ReadError> {
         use std::io::Read;
-        let mut head = [0u8; 8];
-        let mut f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
-        let n = f.read(&mut head).map_err(|e| ReadError::io(path, e))?;
-        if n == 8 && head == *b"\x89HDF\r\n\x1a\n" {
-            return Ok(Format::EcalibH5);
+        let mut head = Vec::with_capacity(16);
+        let f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
+        f.take(16).read_to_end(&mut head).map_err(|e| ReadError::io(path, e))?;
+        if head.starts_with(b"\x89HDF\r\n\x1a\n") {
+            // Which HDF5 layout, by the datasets; E-Calib's reader lists them if none fits.
+            return Ok(h5cols::layout(path).unwrap_or(Format::EcalibH5));
+        }
+        // AEDAT 2 and 3 too: the AEDAT4 reader says they are not supported.
+        if head.starts_with(b"#!AER-DAT") {
+            return Ok(Format::Aedat4);
+        }
+        if head.starts_with(b"#ROSBAG V") {
+            return Ok(Format::RosBag);
         }
         let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
         if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
@@ -49,6 +73,8 @@ impl Format {
         }
         match ext.as_deref() {
             Some("h5" | "hdf5") => Ok(Format::EcalibH5),
+            Some("aedat4") => Ok(Format::Aedat4),
+            Some("bag") => Ok(Format::RosBag),
             _ => Ok(Format::Text),
         }
     }
@@ -63,6 +89,10 @@ impl Format {
             Format::PropheseeRaw(Encoding::Evt21(Evt21Order::HighHalfFirst)) => "Prophesee RAW EVT 2.1 (IMX636 order)",
             Format::PropheseeRaw(Encoding::Evt3) => "Prophesee RAW EVT 3.0",
             Format::PropheseeDat => "Prophesee DAT (CD events)",
+            Format::Aedat4 => "AEDAT4 (iniVation DV)",
+            Format::RosBag => "ROS1 bag (dvs_msgs/EventArray)",
+            Format::EventsGroupH5 => "HDF5 (events/x,y,t,p)",
+            Format::RootColumnsH5 => "HDF5 (x,y,p,t at the root: e2calib)",
         }
     }
 }
@@ -74,7 +104,7 @@ pub enum Position {
     Line(u64),
     /// A row of a table (an event index), from 0.
     Row(u64),
-    /// A byte offset in a binary file, from 0.
+    /// A byte offset in a binary file, from 0 (the start of the record or packet at fault).
     Byte(u64),
     /// Nowhere in particular (opening, metadata).
     File,
@@ -114,6 +144,17 @@ impl fmt::Display for ReadError {
 
 impl std::error::Error for ReadError {}
 
+/// Choices a reader cannot make from the file alone; the defaults suit most files.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct OpenOptions {
+    /// The stream to read where a file holds several: a ROS bag topic, an AEDAT4 stream's
+    /// name or id. Default: the file's only event stream, else the conventional one
+    /// (`/dvs/events`, `events`).
+    pub topic: Option<String>,
+    /// The unit of integer timestamps in HDF5 column layouts, instead of detecting it.
+    pub time_unit: Option<TimeUnit>,
+}
+
 /// An open recording: an iterator of events plus what the file says about itself.
 pub struct Recording {
     /// The format.
@@ -140,28 +181,44 @@ pub(crate) trait EventSource {
 }
 
 impl Recording {
-    /// Opens `path`, choosing the reader by [`Format::detect`].
+    /// Opens `path` with the default [`OpenOptions`], choosing the reader by [`Format::detect`].
     pub fn open(path: &Path) -> Result<Self, ReadError> {
+        Self::open_with(path, &OpenOptions::default())
+    }
+
+    /// Opens `path`, choosing the reader by [`Format::detect`].
+    pub fn open_with(path: &Path, opts: &OpenOptions) -> Result<Self, ReadError> {
         let format = Format::detect(path)?;
         let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
+        let rec = |sensor, len, events: Box<dyn EventSource>| Self { format, sensor, len, file_bytes, events };
         match format {
             Format::Text => {
                 let r = TextReader::open(path)?;
-                let sensor = r.sensor();
-                Ok(Self { format, sensor, len: None, file_bytes, events: Box::new(r) })
+                Ok(rec(r.sensor(), None, Box::new(r)))
             }
             Format::EcalibH5 => {
                 let r = H5Reader::open(path)?;
-                let len = Some(r.len());
-                Ok(Self { format, sensor: None, len, file_bytes, events: Box::new(r) })
+                Ok(rec(None, Some(r.len()), Box::new(r)))
+            }
+            Format::Aedat4 => {
+                let r = Aedat4Reader::open(path, opts.topic.as_deref())?;
+                Ok(rec(r.sensor(), r.len(), Box::new(r)))
+            }
+            Format::RosBag => {
+                let r = BagReader::open(path, opts.topic.as_deref())?;
+                Ok(rec(r.sensor(), None, Box::new(r)))
+            }
+            Format::EventsGroupH5 | Format::RootColumnsH5 => {
+                let r = H5ColumnsReader::open(path, format, opts.time_unit)?;
+                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
             }
             Format::PropheseeRaw(enc) => {
                 let r = prophesee::RawReader::open(path, enc)?;
-                Ok(Self { format, sensor: r.sensor(), len: None, file_bytes, events: Box::new(r) })
+                Ok(rec(r.sensor(), None, Box::new(r)))
             }
             Format::PropheseeDat => {
                 let r = prophesee::DatReader::open(path)?;
-                Ok(Self { format, sensor: r.sensor(), len: Some(r.len()), file_bytes, events: Box::new(r) })
+                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
             }
         }
     }

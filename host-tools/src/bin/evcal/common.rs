@@ -12,11 +12,49 @@ use evcal_core::{
 };
 use evcal_host::{
     detections,
-    recording::{guess_sensor, parse_sensor, Recording},
+    recording::{guess_sensor, parse_sensor, OpenOptions, Recording, TimeUnit},
     sim::{FrameTruth, SimConfig, Simulator},
 };
 use indicatif::{ProgressBar, ProgressStyle};
 use std::{io::BufWriter, path::Path};
+
+/// What a recording cannot say about itself: which stream to read, the unit of its times.
+#[derive(Args, Clone)]
+pub struct ReadArgs {
+    /// The stream to read where the file holds several. ROS bag: a topic of type
+    /// dvs_msgs/EventArray (default: the only one, else /dvs/events). AEDAT4: an event
+    /// stream's name or id (default: the only one, else 'events').
+    #[arg(long, value_name = "NAME")]
+    pub topic: Option<String>,
+    /// Unit of integer timestamps in HDF5 files laid out as x, y, t, p datasets: s, ms, us or
+    /// ns. Default: from the file's attributes, DSEC's t_offset, else from the values (a note
+    /// on standard error says which and why).
+    #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
+    pub time_unit: Option<TimeUnit>,
+}
+
+fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
+    TimeUnit::parse(s).ok_or_else(|| format!("'{s}' is not a time unit: use s, ms, us or ns"))
+}
+
+impl ReadArgs {
+    /// The reader options these arguments give.
+    pub fn options(&self) -> OpenOptions {
+        OpenOptions { topic: self.topic.clone(), time_unit: self.time_unit }
+    }
+
+    /// Opens `path`, printing the reader's notes (a guessed unit, a missing index) unless
+    /// `quiet`.
+    pub fn open(&self, path: &Path, quiet: bool) -> Result<Recording> {
+        let rec = Recording::open_with(path, &self.options())?;
+        if !quiet {
+            for n in &rec.notes() {
+                eprintln!("evcal: note: {n}");
+            }
+        }
+        Ok(rec)
+    }
+}
 
 #[derive(Args, Clone)]
 pub struct CoreArgs {
@@ -85,7 +123,13 @@ impl CoreArgs {
 }
 
 /// The sensor size: given, else from the file, else guessed from a pass over the events.
-pub fn resolve_sensor(given: Option<&str>, path: &Path, rec: &Recording, quiet: bool) -> Result<SensorSize> {
+pub fn resolve_sensor(
+    given: Option<&str>,
+    path: &Path,
+    rec: &Recording,
+    opts: &OpenOptions,
+    quiet: bool,
+) -> Result<SensorSize> {
     if let Some(s) = given {
         return parse_sensor(s).map_err(anyhow::Error::msg);
     }
@@ -93,7 +137,7 @@ pub fn resolve_sensor(given: Option<&str>, path: &Path, rec: &Recording, quiet: 
         return Ok(s);
     }
     let (mut mx, mut my, mut any) = (0u16, 0u16, false);
-    for e in Recording::open(path)? {
+    for e in Recording::open_with(path, opts)? {
         let e = e?;
         mx = mx.max(e.x);
         my = my.max(e.y);

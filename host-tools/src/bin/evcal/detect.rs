@@ -1,12 +1,9 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
-use crate::common::{progress_bar, resolve_sensor, CoreArgs};
+use crate::common::{progress_bar, resolve_sensor, CoreArgs, ReadArgs};
 use anyhow::{Context, Result};
 use clap::Args;
-use evcal_host::{
-    detections::{self, WindowRecord},
-    recording::Recording,
-};
+use evcal_host::detections::{self, WindowRecord};
 use std::{
     io::{BufWriter, Write},
     path::PathBuf,
@@ -14,8 +11,11 @@ use std::{
 
 #[derive(Args)]
 pub struct DetectArgs {
-    /// The recording: text (`t x y p`, t in seconds) or HDF5 (E-Calib's `events_data`).
+    /// The recording: text (`t x y p`, t in seconds), AEDAT4, ROS1 bag (dvs_msgs/EventArray)
+    /// or HDF5 (E-Calib's `events_data`, `events/{x,y,t,p}`, e2calib's root `x, y, p, t`).
     pub recording: PathBuf,
+    #[command(flatten)]
+    pub read: ReadArgs,
     #[command(flatten)]
     pub core: CoreArgs,
     /// Write the JSON lines here instead of standard output.
@@ -27,8 +27,9 @@ pub struct DetectArgs {
 }
 
 pub fn run(a: DetectArgs) -> Result<()> {
-    let rec = Recording::open(&a.recording)?;
-    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, a.quiet)?;
+    let rec = a.read.open(&a.recording, a.quiet)?;
+    let notes_at_open = rec.notes();
+    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
     let cfg = a.core.config(sensor)?;
     let mut out: Box<dyn Write> = match &a.out {
         Some(p) => Box::new(BufWriter::new(
@@ -64,6 +65,12 @@ pub fn run(a: DetectArgs) -> Result<()> {
         return Err(e).context("writing detections");
     }
     out.flush().context("writing detections")?;
+    if !a.quiet {
+        // What the reader noticed while reading (the notes of opening were printed then).
+        for n in rec.notes().iter().filter(|n| !notes_at_open.contains(n)) {
+            eprintln!("evcal: note: {n}");
+        }
+    }
     let s = summary?;
     if !a.quiet {
         eprintln!(

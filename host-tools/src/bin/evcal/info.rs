@@ -1,7 +1,7 @@
 //! `evcal info`: what a recording holds (format, sensor, events, time span, event rate over
 //! time, polarity balance), read in one streaming pass.
 
-use crate::common::progress_bar;
+use crate::common::{progress_bar, ReadArgs};
 use anyhow::Result;
 use clap::Args;
 use evcal_core::event::SensorSize;
@@ -12,6 +12,8 @@ use std::path::PathBuf;
 pub struct InfoArgs {
     /// The recording (any format evcal reads; see the README's table).
     pub recording: PathBuf,
+    #[command(flatten)]
+    pub read: ReadArgs,
     /// Print one JSON object instead of the table. Keys kept stable for other programs:
     /// "format", "width", "height", "events", "t_first_us", "t_last_us" (and more).
     #[arg(long)]
@@ -78,7 +80,8 @@ struct Summary {
 }
 
 pub fn run(a: InfoArgs) -> Result<()> {
-    let mut rec = Recording::open(&a.recording)?;
+    // The reader's notes are printed with the summary, not when opening.
+    let mut rec = Recording::open_with(&a.recording, &a.read.options())?;
     let pb = progress_bar(rec.file_bytes, a.quiet || a.json, "reading");
     let mut s = Summary { events: 0, on: 0, t_first: None, t_last: 0, steps_back: 0, max_x: 0, max_y: 0, hist: None };
     let mut error: Option<ReadError> = None;
