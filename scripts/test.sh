@@ -47,7 +47,7 @@ bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-15}"
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
 
-# The firmware on QEMU's mps2-an386 against the host: measured 65 s (the 100-window UART
+# The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
 # replay is 35 s of it); the test binary is the workspace tests' build, the image the one
 # built above. See tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which needs no QEMU.
 step "firmware under QEMU (emulated Cortex-M4F board)"
