@@ -6,11 +6,21 @@ set -euo pipefail
 need_apt=()
 dpkg -s libhdf5-dev >/dev/null 2>&1 || need_apt+=(libhdf5-dev)
 dpkg -s pkg-config >/dev/null 2>&1 || need_apt+=(pkg-config)
+command -v gcc >/dev/null 2>&1 || need_apt+=(gcc)
 if [ "${#need_apt[@]}" -gt 0 ]; then
   echo "setup: installing Debian packages: ${need_apt[*]}"
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+# The emulated board the firmware is tested on (QEMU's mps2-an386); without its recommended
+# packages (GUI, firmware images for other machines), which the tests do not need.
+if ! dpkg -s qemu-system-arm >/dev/null 2>&1; then
+  echo "setup: installing Debian package qemu-system-arm"
+  SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  [ "${#need_apt[@]}" -gt 0 ] || $SUDO apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends qemu-system-arm >/dev/null
 fi
 
 # Independent writers of the recording formats (scripts/make-format-fixtures.py): iniVation's
@@ -30,7 +40,7 @@ then
   python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" numpy
 fi
 
-# The core must build for the Cortex-M4F.
+# The core and the firmware build for the Cortex-M4F.
 if ! rustup target list --installed | grep -qx thumbv7em-none-eabihf; then
   echo "setup: adding rustup target thumbv7em-none-eabihf"
   rustup target add thumbv7em-none-eabihf

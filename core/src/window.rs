@@ -105,15 +105,8 @@ pub struct Windower<const N: usize> {
 impl<const N: usize> Windower<N> {
     /// A windower that cuts windows as `cfg` says (events clamped to 1..=N).
     pub const fn new(cfg: WindowConfig) -> Self {
-        let events = if cfg.events == 0 {
-            1
-        } else if cfg.events > N {
-            N
-        } else {
-            cfg.events
-        };
         Self {
-            cfg: WindowConfig { events, step_us: cfg.step_us },
+            cfg: Self::clamped(cfg),
             buf: [WindowEvent { x: 0, y: 0, dt_us: 0 }; N],
             len: 0,
             t0: 0,
@@ -122,6 +115,30 @@ impl<const N: usize> Windower<N> {
             seq: 0,
             state: State::Start,
         }
+    }
+
+    const fn clamped(cfg: WindowConfig) -> WindowConfig {
+        let events = if cfg.events == 0 {
+            1
+        } else if cfg.events > N {
+            N
+        } else {
+            cfg.events
+        };
+        WindowConfig { events, step_us: cfg.step_us }
+    }
+
+    /// Starts over as `new(cfg)` would, in place: the event buffer (8 bytes per event, tens
+    /// of kilobytes) is neither rebuilt nor copied, which matters where it lives in a
+    /// `static` and the stack is small.
+    pub fn reconfigure(&mut self, cfg: WindowConfig) {
+        self.cfg = Self::clamped(cfg);
+        self.len = 0;
+        self.t0 = 0;
+        self.t_first = 0;
+        self.t_last = 0;
+        self.seq = 0;
+        self.state = State::Start;
     }
 
     /// The configuration in force (after clamping).

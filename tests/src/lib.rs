@@ -1,3 +1,5 @@
 //! Shared helpers of the end-to-end tests (in `tests/`).
 
 pub mod faery;
+pub mod firmware;
+pub mod link;

@@ -1,0 +1,25 @@
+//! # evcal-firmware: the parts of the firmware that do not depend on the chip
+//!
+//! The firmware image (`src/main.rs`, built with `cargo fw` for `thumbv7em-none-eabihf`)
+//! brings a board up and runs the detection core of `evcal-core` window by window on events
+//! from an [`EventSource`]. What is here compiles on any target, so the host tests it and the
+//! host tools use the same code to write what the firmware reads:
+//!
+//! * [`source`]: the event-source trait every input implements (the emulator's bulk file, a
+//!   sensor's EVT byte stream; UART replay arrives through the wire protocol's device loop),
+//!   and [`source::SliceSource`] for tests.
+//! * [`bulk`]: the bulk replay format, 8 bytes per event, read by the emulator-only
+//!   semihosting source so that CI can replay hundreds of windows faster than QEMU's UART
+//!   (about 14 KB/s) carries them.
+//! * [`evt`]: a Prophesee sensor's EVT byte stream as an event source (the core's decoders
+//!   behind the same trait).
+//! * [`runner`]: the window loop (feed, process between the benchmark markers, hand each
+//!   detection on), shared by every mode of the firmware.
+#![cfg_attr(not(test), no_std)]
+#![deny(unsafe_code)]
+#![deny(missing_docs)]
+
+pub mod bulk;
+pub mod evt;
+pub mod runner;
+pub mod source;

@@ -1,0 +1,99 @@
+//! The evcal firmware: the detection core on a Cortex-M4F beside the event camera.
+//!
+//! Built for `thumbv7em-none-eabihf` with `cargo fw`; `cargo fw-run` boots it in QEMU. On
+//! the host this file is a stub that says so (the workspace builds every member there).
+#![cfg_attr(target_os = "none", no_std)]
+#![cfg_attr(target_os = "none", no_main)]
+
+#[cfg(not(target_os = "none"))]
+fn main() {
+    eprintln!(
+        "evcal-firmware runs on a Cortex-M4F: build it with `cargo fw` \
+         (cargo build -p evcal-firmware --target thumbv7em-none-eabihf --profile firmware) \
+         and boot it in QEMU with `cargo fw-run`"
+    );
+    std::process::exit(2);
+}
+
+// Logging: defmt with the `defmt` feature, nothing without (the arguments are still
+// evaluated for type checks, not formatted). Must come before the modules that log.
+#[cfg(target_os = "none")]
+macro_rules! log_info {
+    ($($arg:tt)*) => {{
+        #[cfg(feature = "defmt")]
+        defmt::info!($($arg)*);
+    }};
+}
+
+#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+mod bench;
+#[cfg(target_os = "none")]
+mod board;
+#[cfg(target_os = "none")]
+mod device;
+#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+mod hostfs;
+#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+mod stack;
+
+#[cfg(all(target_os = "none", feature = "defmt", feature = "board-stm32f405"))]
+use defmt_rtt as _;
+#[cfg(all(target_os = "none", feature = "defmt", not(feature = "board-stm32f405")))]
+use defmt_semihosting as _;
+
+/// Marks the start of one window's processing for an external instruction counter (the
+/// `qemu-insn-count` plugin breaks on this symbol). Its body differs from [`bench_stop`]'s
+/// so that the linker cannot fold the two into one address.
+#[cfg(target_os = "none")]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn bench_start() {
+    cortex_m::asm::nop();
+}
+
+/// Marks the end of one window's processing (see [`bench_start`]).
+#[cfg(target_os = "none")]
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn bench_stop() {
+    cortex_m::asm::nop();
+    cortex_m::asm::nop();
+}
+
+#[cfg(target_os = "none")]
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    // The benchmark reports the stack's high-water mark (emulator only).
+    #[cfg(not(feature = "board-stm32f405"))]
+    stack::paint();
+    // `take` succeeds exactly once, and this is the first call.
+    let Some(cp) = cortex_m::Peripherals::take() else { board::exit(false) };
+    let board = board::init(cp);
+    log_info!("evcal firmware up: core clock {=u32} Hz", board::CLOCK_HZ);
+    let ok = device::run(board);
+    board::exit(ok)
+}
+
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn HardFault(ef: &cortex_m_rt::ExceptionFrame) -> ! {
+    board::report(format_args!("evcal firmware: HardFault at pc {:#010x}, lr {:#010x}", ef.pc(), ef.lr()));
+    board::exit(false)
+}
+
+/// Interrupts the board does not handle itself are faults.
+#[cfg(target_os = "none")]
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(irqn: i16) {
+    if !board::on_interrupt(irqn) {
+        board::report(format_args!("evcal firmware: unexpected interrupt {irqn}"));
+        board::exit(false)
+    }
+}
+
+#[cfg(target_os = "none")]
+#[panic_handler]
+fn panic(info: &core::panic::PanicInfo) -> ! {
+    board::report(format_args!("evcal firmware: {info}"));
+    board::exit(false)
+}

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The firmware benchmark (not a test): cost of 4000-event windows on the Cortex-M4F under
+# QEMU. Simulates a DAVIS346 recording (4x11 grid, cone, good light; 3.5 s, about 100
+# windows at the paper's 33 ms), replays it into the firmware from a bulk file, checks every
+# window against the host's core bit for bit, and prints instructions per window (exact,
+# between the firmware's bench_start/bench_stop markers, counted by a QEMU plugin), per stage
+# (SysTick under -icount shift=0), the time they imply at 168 MHz, and flash/RAM.
+#   bash scripts/bench-firmware.sh [--seconds S] [--step-ms MS] [--light good|low] [--cpi X] [--mhz F]
+# Takes about a minute (mostly the simulation); output also goes to target/bench-firmware/report.txt.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh >/dev/null
+mkdir -p target/bench-firmware
+plugin=target/bench-firmware/libinsn_count.so
+if [ ! -e "$plugin" ] || [ firmware/tools/insn_count.c -nt "$plugin" ]; then
+  gcc -shared -fPIC -O2 -Wall -o "$plugin" firmware/tools/insn_count.c
+fi
+cargo build -q -p evcal-firmware --target thumbv7em-none-eabihf --profile firmware
+cargo run -q --release -p evcal-tests --example bench_firmware -- --plugin "$plugin" "$@" \
+  | tee target/bench-firmware/report.txt

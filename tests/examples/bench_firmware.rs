@@ -1,0 +1,281 @@
+//! The firmware benchmark: cost of 4000-event windows on the Cortex-M4F, measured under QEMU.
+//!
+//! Run it through `scripts/bench-firmware.sh` (which builds the firmware and the instruction
+//! counting plugin). It simulates a recording, replays it into the firmware from a bulk
+//! file, checks that every window equals the host-side run of the core bit for bit, and
+//! reports instructions per window (exact, between the benchmark markers), per stage (SysTick
+//! under `-icount shift=0`), the implied time at the chosen clock and CPI, and the
+//! firmware's memory.
+//!
+//! Options: `--seconds S` (3.5), `--step-ms MS` (33.333), `--events N` (4000),
+//! `--light good|low`, `--plugin LIB` (no exact counts without it), `--cpi X` (1.25),
+//! `--mhz F` (168), `--dir DIR` (target/bench-firmware), `--profile N` (also list the N
+//! functions that execute the most instructions inside the windows; slower).
+
+use anyhow::{bail, ensure, Context, Result};
+use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_host::{
+    eval::simulate,
+    sim::{Light, SimConfig, Trajectory},
+};
+use evcal_tests::{
+    firmware::{self, BenchRun, Counter},
+    link,
+};
+use std::path::PathBuf;
+
+/// SysTick ticks once every this many instructions on QEMU's mps2-an386 under
+/// `-icount shift=0` (1 ns per instruction, 25 MHz system clock).
+const INSNS_PER_TICK: f64 = 40.0;
+
+struct Opts {
+    seconds: f64,
+    step_ms: f64,
+    events: usize,
+    light: Light,
+    plugin: Option<PathBuf>,
+    cpi: f64,
+    mhz: f64,
+    dir: PathBuf,
+    profile: usize,
+}
+
+fn opts() -> Result<Opts> {
+    let mut o = Opts {
+        seconds: 3.5,
+        step_ms: 33.333,
+        events: 4000,
+        light: Light::Good,
+        plugin: None,
+        cpi: 1.25,
+        mhz: 168.0,
+        dir: firmware::target_dir().join("bench-firmware"),
+        profile: 0,
+    };
+    let mut args = std::env::args().skip(1);
+    while let Some(a) = args.next() {
+        let mut v = || args.next().with_context(|| format!("{a} needs a value"));
+        match a.as_str() {
+            "--seconds" => o.seconds = v()?.parse()?,
+            "--step-ms" => o.step_ms = v()?.parse()?,
+            "--events" => o.events = v()?.parse()?,
+            "--light" => {
+                o.light = match v()?.as_str() {
+                    "good" => Light::Good,
+                    "low" => Light::Low,
+                    l => bail!("--light good or low, not {l}"),
+                }
+            }
+            "--plugin" => o.plugin = Some(v()?.into()),
+            "--cpi" => o.cpi = v()?.parse()?,
+            "--mhz" => o.mhz = v()?.parse()?,
+            "--dir" => o.dir = v()?.into(),
+            "--profile" => o.profile = v()?.parse()?,
+            _ => bail!("unknown option {a} (see the doc comment of tests/examples/bench_firmware.rs)"),
+        }
+    }
+    Ok(o)
+}
+
+struct Summary {
+    mean: f64,
+    median: f64,
+    min: f64,
+    max: f64,
+}
+
+fn summary(v: &[f64]) -> Summary {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len().max(1) as f64;
+    Summary {
+        mean: s.iter().sum::<f64>() / n,
+        median: s.get(s.len() / 2).copied().unwrap_or(0.0),
+        min: s.first().copied().unwrap_or(0.0),
+        max: s.last().copied().unwrap_or(0.0),
+    }
+}
+
+fn m(x: f64) -> String {
+    format!("{:.3} M", x / 1e6)
+}
+
+fn main() -> Result<()> {
+    let o = opts()?;
+    std::fs::create_dir_all(&o.dir)?;
+    let elf = firmware::build_firmware()?;
+
+    let sim_cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, o.light, 11).context("preset")?;
+    let sensor = SensorSize { width: sim_cfg.camera.width, height: sim_cfg.camera.height };
+    eprintln!("bench: simulating {} s of DAVIS346, 4x11 grid, cone, {} light", o.seconds, o.light.name());
+    let (events, _) = simulate(sim_cfg, o.seconds);
+    let bulk = o.dir.join("events.bin");
+    firmware::write_bulk(&bulk, sensor, &events)?;
+    let step_us = (o.step_ms * 1000.0).round() as u64;
+    let mut cfg = DetectConfig::new(sensor);
+    cfg.window.events = o.events;
+    cfg.window.step_us = step_us;
+    let want = firmware::host_windows(&events, cfg);
+
+    eprintln!("bench: replaying {} events ({} windows) in QEMU", events.len(), want.len());
+    let t = std::time::Instant::now();
+    let counter = o.plugin.as_deref().map(|plugin| Counter { plugin, profile: o.profile > 0 });
+    let run: BenchRun = firmware::run_bench(&elf, &bulk, o.events, step_us, counter)?;
+    let qemu_s = t.elapsed().as_secs_f64();
+
+    // The figures mean nothing unless the device computed what the host computes.
+    ensure!(run.windows.len() == want.len(), "{} windows on the device, {} on the host", run.windows.len(), want.len());
+    for (d, h) in run.windows.iter().zip(&want) {
+        ensure!(d.without_times() == *h, "window {} differs between device and host", h.seq);
+    }
+    let full: Vec<usize> = (0..run.windows.len()).filter(|&i| run.windows[i].counts[0] as usize == o.events).collect();
+
+    let elf_size = size(&elf)?;
+    println!("# evcal firmware benchmark (QEMU mps2-an386, Cortex-M4F, -icount shift=0)");
+    println!(
+        "recording: simulated DAVIS346 4x11 cone, {} light, {:.1} s, {} events; windows of {} events every {} ms: {} windows ({} full), all identical to the host's core bit for bit",
+        o.light.name(),
+        o.seconds,
+        events.len(),
+        o.events,
+        o.step_ms,
+        want.len(),
+        full.len()
+    );
+    let centres: usize = run.windows.iter().map(|w| w.centres.len()).sum();
+    println!("centres per window: {:.1} mean", centres as f64 / run.windows.len().max(1) as f64);
+    // The device's detection frames are these bytes exactly (tests/tests/firmware_qemu.rs).
+    let frames = link::expected_frames(&events, cfg)?;
+    let sizes: Vec<f64> = frames.iter().map(|(_, f)| f.len() as f64).collect();
+    let s = summary(&sizes);
+    println!(
+        "link, device to host: detection frame (COBS, CRC, delimiters) mean {:.0} B, max {:.0} B per window; plus a Stats frame every 16 windows and the Acks of a replay (raw events: {} B per window)",
+        s.mean,
+        s.max,
+        o.events * 8
+    );
+    let to_ms = |insns: f64| insns * o.cpi / (o.mhz * 1e3);
+    if run.instructions.is_empty() {
+        println!("instructions per window: not counted (no --plugin)");
+    } else {
+        ensure!(
+            run.instructions.len() == run.windows.len(),
+            "{} counted spans for {} windows",
+            run.instructions.len(),
+            run.windows.len()
+        );
+        let v: Vec<f64> = full.iter().map(|&i| run.instructions[i] as f64).collect();
+        let s = summary(&v);
+        println!(
+            "instructions per window (exact, bench_start..bench_stop, {} full windows): mean {}, median {}, min {}, max {}",
+            v.len(),
+            m(s.mean),
+            m(s.median),
+            m(s.min),
+            m(s.max)
+        );
+        println!(
+            "implied time at {} MHz, {} cycles per instruction: mean {:.2} ms, max {:.2} ms (real time at 30 windows/s: 33.3 ms)",
+            o.mhz,
+            o.cpi,
+            to_ms(s.mean),
+            to_ms(s.max)
+        );
+        println!("targets: <= 4.4 M instructions per window, aim <= 1.6 M");
+        if let Some(total) = run.total_instructions {
+            let inside: u64 = run.instructions.iter().sum();
+            let fed = run.num("events")?;
+            println!(
+                "outside the windows' processing (boot, bulk-file reads and decoding, input filter, windowing, result lines): {:.0} instructions per event fed ({} events)",
+                (total - inside) as f64 / fed.max(1) as f64,
+                fed
+            );
+        }
+    }
+    let cl: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].cluster_ticks) * INSNS_PER_TICK).collect();
+    let fi: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].fit_ticks) * INSNS_PER_TICK).collect();
+    let (cl, fi) = (summary(&cl), summary(&fi));
+    println!(
+        "per stage (SysTick x {INSNS_PER_TICK} instructions/tick): clustering mean {} max {}; fitting mean {} max {}",
+        m(cl.mean),
+        m(cl.max),
+        m(fi.mean),
+        m(fi.max)
+    );
+    let events_fed = run.num("events")?;
+    println!(
+        "memory: flash {} B (text {} + rodata {} + data {}), static RAM {} B (data {} + bss {}), stack peak {} B, heap none",
+        elf_size.flash(),
+        elf_size.text,
+        elf_size.rodata,
+        elf_size.data,
+        elf_size.ram(),
+        elf_size.data,
+        elf_size.bss,
+        run.num("stack_peak")?
+    );
+    println!("budget: flash 512 KiB, RAM 128 KiB (linker-enforced), static RAM target <= 64 KiB");
+    println!("qemu wall time: {qemu_s:.1} s for {events_fed} events");
+    if o.profile > 0 {
+        let all: u64 = run.profile.iter().map(|(_, n)| n).sum();
+        println!("where the instructions inside the windows go (per window, by function; inlined code counts as its caller's):");
+        for (name, n) in run.profile.iter().take(o.profile) {
+            println!(
+                "  {:>8.3} M  {:>5.1} %  {name}",
+                *n as f64 / run.windows.len().max(1) as f64 / 1e6,
+                100.0 * *n as f64 / all.max(1) as f64
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Section sizes of an ELF, by the kind of memory they take.
+struct ElfSize {
+    text: u64,
+    rodata: u64,
+    data: u64,
+    bss: u64,
+}
+
+impl ElfSize {
+    fn flash(&self) -> u64 {
+        self.text + self.rodata + self.data
+    }
+    fn ram(&self) -> u64 {
+        self.data + self.bss
+    }
+}
+
+/// Reads the section headers of a 32-bit little-endian ELF (no tool needed): allocated
+/// sections, sorted into code, read-only data, initialised data and zeroed data.
+fn size(elf: &std::path::Path) -> Result<ElfSize> {
+    let b = std::fs::read(elf)?;
+    ensure!(b.len() > 52 && &b[..4] == b"\x7fELF" && b[4] == 1 && b[5] == 1, "not a 32-bit little-endian ELF");
+    let u16_at = |o: usize| u16::from_le_bytes([b[o], b[o + 1]]) as usize;
+    let u32_at = |o: usize| u32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as u64;
+    let (shoff, shentsize, shnum) = (u32_at(32) as usize, u16_at(46), u16_at(48));
+    ensure!(shoff + shentsize * shnum <= b.len(), "section headers out of the file");
+    let mut s = ElfSize { text: 0, rodata: 0, data: 0, bss: 0 };
+    for i in 0..shnum {
+        let h = shoff + i * shentsize;
+        let (kind, flags, size) = (u32_at(h + 4), u32_at(h + 8), u32_at(h + 20));
+        const ALLOC: u64 = 2;
+        const WRITE: u64 = 1;
+        const EXEC: u64 = 4;
+        const NOBITS: u64 = 8;
+        if flags & ALLOC == 0 {
+            continue;
+        }
+        if kind == NOBITS {
+            s.bss += size;
+        } else if flags & WRITE != 0 {
+            s.data += size;
+        } else if flags & EXEC != 0 {
+            s.text += size;
+        } else {
+            s.rodata += size;
+        }
+    }
+    Ok(s)
+}

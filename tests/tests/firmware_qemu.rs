@@ -1,0 +1,218 @@
+//! The firmware on the emulated board (QEMU mps2-an386, Cortex-M4F), against the host.
+//!
+//! These boot the real firmware image, so they need `qemu-system-arm` (scripts/setup.sh
+//! installs it) and the `thumbv7em-none-eabihf` target; they build the image themselves.
+//! Ignored by a plain `cargo test`; scripts/test.sh runs them:
+//! `cargo test -p evcal-tests --test firmware_qemu -- --ignored`.
+
+use evcal_core::{
+    detect::DetectConfig,
+    event::{Event, SensorSize},
+};
+use evcal_host::{
+    eval::simulate,
+    sim::{Light, SimConfig, Trajectory},
+};
+use evcal_tests::{
+    firmware,
+    link::{self, Damage, Qemu, Tamper},
+};
+use std::{
+    path::PathBuf,
+    process::Command,
+    time::{Duration, Instant},
+};
+
+fn elf() -> PathBuf {
+    if let Some(why) = firmware::qemu_missing() {
+        panic!("{why}");
+    }
+    firmware::build_firmware().expect("build the firmware")
+}
+
+/// A simulated DAVIS346 recording (4x11 grid, cone, good light) and the detector's
+/// configuration for it, windows of 4000 events every `step_us`.
+fn recording(seed: u64, seconds: f64, step_us: u64) -> (Vec<Event>, DetectConfig) {
+    let sim = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, seed).unwrap();
+    let sensor = SensorSize { width: sim.camera.width, height: sim.camera.height };
+    let (events, _) = simulate(sim, seconds);
+    let mut cfg = DetectConfig::new(sensor);
+    cfg.window.step_us = step_us;
+    (events, cfg)
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = firmware::target_dir().join("qemu-tests");
+    std::fs::create_dir_all(&d).expect("scratch directory");
+    d.join(name)
+}
+
+/// More than 100 windows of 4000 events of a simulated DAVIS346 recording, replayed from the
+/// emulator-only bulk source: every window the device computes equals the host's, bit for
+/// bit, and no event goes missing.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn bulk_replay_equals_the_host_core_bit_for_bit() {
+    let elf = elf();
+    let sim = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, 5).unwrap();
+    let sensor = SensorSize { width: sim.camera.width, height: sim.camera.height };
+    let (events, _) = simulate(sim, 0.55);
+    let bulk = scratch("bulk-replay.bin");
+    firmware::write_bulk(&bulk, sensor, &events).unwrap();
+    // Ticks every 5 ms: a window of 4000 events spans about 4.3 ms here, so the windower also
+    // skips events between windows, as it does at the paper's 33 ms.
+    let step_us = 5_000;
+    let mut cfg = DetectConfig::new(sensor);
+    cfg.window.step_us = step_us;
+    let want = firmware::host_windows(&events, cfg);
+    assert!(want.len() >= 100, "the recording has {} windows", want.len());
+    assert!(want.iter().map(|w| w.centres.len()).sum::<usize>() > 30 * want.len(), "the windows have centres");
+
+    let t = Instant::now();
+    let run = firmware::run_bench(&elf, &bulk, 4000, step_us, None).expect("firmware run");
+    eprintln!("{} windows, {} events in QEMU in {:.1} s", run.windows.len(), events.len(), t.elapsed().as_secs_f64());
+    assert_eq!(run.windows.len(), want.len(), "windows");
+    for (d, h) in run.windows.iter().zip(&want) {
+        assert_eq!(d.without_times(), *h, "window {}", h.seq);
+        assert!(d.cluster_ticks > 0 && d.fit_ticks > 0, "stages timed by SysTick: {d:?}");
+    }
+    assert_eq!(run.num("events").unwrap(), events.len() as u64, "every event reached the detector");
+    assert_eq!(run.get("end"), Some("End"));
+    assert_eq!((run.num("out_of_sensor").unwrap(), run.num("time_backwards").unwrap()), (0, 0));
+    assert!(run.num("static_ram").unwrap() + run.num("stack_peak").unwrap() < 128 * 1024, "RAM budget");
+}
+
+/// A fault or a panic ends QEMU with a failure status and a message, promptly: a broken
+/// firmware can never hang CI.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn faults_and_panics_exit_qemu_with_failure() {
+    let elf = elf();
+    for (mode, says) in [("fault", "HardFault"), ("panic", "panicked"), ("bench /nonexistent/file", "cannot open")] {
+        let t = Instant::now();
+        let out = Command::new("bash")
+            .arg(firmware::workspace_root().join("scripts/qemu-run.sh"))
+            .arg(&elf)
+            .args(["-append", mode])
+            .env("EVCAL_QEMU_TIMEOUT", "60")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{mode}: {err}");
+        assert!(err.contains(says), "{mode}: {err}");
+        assert!(t.elapsed() < Duration::from_secs(30), "{mode} took {:?}", t.elapsed());
+    }
+}
+
+/// More than 100 windows of 4000 events replayed through the emulated UART as the wire
+/// protocol's event batches (flow-controlled by the device's acknowledgements): the
+/// detection frames the device sends are byte for byte the frames the host's run of the core
+/// encodes, none is missing, and the device counted every event.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn uart_replay_equals_the_host_core_byte_for_byte() {
+    let elf = elf();
+    // Back-to-back windows (step 0): every event sent is used, so the UART carries the
+    // least for 100 windows.
+    let (events, cfg) = recording(7, 0.47, 0);
+    let want = link::expected_frames(&events, cfg).unwrap();
+    assert!(want.len() >= 100, "{} windows", want.len());
+
+    let t = Instant::now();
+    let mut qemu = Qemu::boot(&elf, None, 600).unwrap();
+    let got = link::replay(&mut qemu, cfg, &events, Tamper::default(), Duration::from_secs(500)).unwrap();
+    let secs = t.elapsed().as_secs_f64();
+    eprintln!(
+        "UART replay: {} events, {} windows in {secs:.1} s; {} bytes to the device ({:.2} per event, {:.1} KB/s), \
+         {} bytes back ({:.0} per window, detections {:.0} per window)",
+        events.len(),
+        got.detections.len(),
+        got.bytes_out,
+        got.bytes_out as f64 / events.len() as f64,
+        got.bytes_out as f64 / secs / 1e3,
+        got.bytes_in,
+        got.bytes_in as f64 / want.len() as f64,
+        got.detection_bytes as f64 / want.len() as f64,
+    );
+    assert_eq!(got.detections.len(), want.len(), "windows received");
+    for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
+        assert_eq!(s, ws);
+        assert!(f == wf, "window {s}: device frame differs from the host's");
+    }
+    assert_eq!(got.bad_frames, 0);
+    let st = got.final_stats.unwrap();
+    assert_eq!(st.events_received, events.len() as u64, "every event reached the device");
+    assert_eq!(st.windows as usize, want.len());
+    assert_eq!((st.frames_bad, st.frames_discarded, st.rx_overrun), (0, 0, 0));
+}
+
+/// Damage on the link, both ways. Device to host: three detection frames get a flipped bit,
+/// a lost byte and a stray byte; exactly those three windows are missing, every other frame
+/// arrives intact, the host's reader counts three bad frames, and the gaps in the window
+/// numbers show which were lost. Host to device: three event batches are damaged the same
+/// ways on their first transmission; the device drops and reports them (and discards the
+/// frames that follow until the repeat), asks for them again, and the replay stays lossless.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn damaged_frames_cost_only_themselves_and_are_reported() {
+    let elf = elf();
+    let (events, cfg) = recording(8, 0.06, 0);
+    let want = link::expected_frames(&events, cfg).unwrap();
+    assert!(want.len() >= 12, "{} windows", want.len());
+    let tamper = Tamper {
+        detections: vec![(2, Damage::FlipBit), (5, Damage::DropByte), (9, Damage::InsertByte)],
+        batches: vec![(3, Damage::FlipBit), (40, Damage::DropByte), (41, Damage::InsertByte)],
+    };
+    let mut qemu = Qemu::boot(&elf, None, 300).unwrap();
+    let got = link::replay(&mut qemu, cfg, &events, tamper, Duration::from_secs(240)).unwrap();
+
+    let lost: std::collections::BTreeSet<u32> = [2, 5, 9].into();
+    assert_eq!(got.gaps(), lost, "exactly the damaged windows are missing");
+    assert_eq!(got.bad_frames, 3, "the host's reader reports each damaged frame");
+    let kept: Vec<_> = want.iter().filter(|(s, _)| !lost.contains(s)).collect();
+    assert_eq!(got.detections.len(), kept.len());
+    for ((s, f), (ws, wf)) in got.detections.iter().zip(kept) {
+        assert_eq!(s, ws);
+        assert!(f == wf, "window {s}: device frame differs from the host's");
+    }
+    let st = got.final_stats.unwrap();
+    assert_eq!(st.frames_bad, 3, "the device reports each damaged batch");
+    assert!(st.frames_discarded >= 1, "frames after a damaged one are discarded until the repeat");
+    assert_eq!(st.events_received, events.len() as u64, "the replay itself lost nothing");
+    assert_eq!(st.windows as usize, want.len());
+}
+
+/// The protocol with the emulator's bulk source: the host configures a session over the UART,
+/// the events come from a file (windows every 10 ms, so the windower also skips the events
+/// between windows, as at the paper's 33 ms), the detection frames come back over the UART,
+/// byte for byte the host's.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn bulk_source_through_the_protocol_equals_the_host_core() {
+    let elf = elf();
+    let (events, cfg) = recording(9, 1.1, 10_000);
+    let want = link::expected_frames(&events, cfg).unwrap();
+    assert!(want.len() >= 100, "{} windows", want.len());
+    let bulk = scratch("protocol-replay.bin");
+    firmware::write_bulk(&bulk, cfg.sensor, &events).unwrap();
+
+    let t = Instant::now();
+    let append = format!("replay {}", bulk.display());
+    let mut qemu = Qemu::boot(&elf, Some(&append), 300).unwrap();
+    let got = link::replay(&mut qemu, cfg, &[], Tamper::default(), Duration::from_secs(240)).unwrap();
+    eprintln!(
+        "bulk source: {} events, {} windows in {:.1} s",
+        events.len(),
+        got.detections.len(),
+        t.elapsed().as_secs_f64()
+    );
+    assert_eq!(got.detections.len(), want.len(), "windows received");
+    for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
+        assert_eq!(s, ws);
+        assert!(f == wf, "window {s}: device frame differs from the host's");
+    }
+    let st = got.final_stats.unwrap();
+    assert_eq!(st.events_received, events.len() as u64);
+    assert_eq!(st.windows as usize, want.len());
+    assert_eq!(st.frames_bad, 0);
+}
