@@ -62,26 +62,22 @@ enum Command {
     /// --hello-timeout of silence). Frames the device reports damaged are sent again;
     /// detections damaged on the way back are counted as lost. Ctrl-C stops cleanly with
     /// everything received so far written (exit status 130).
-    ///
-    /// Examples:
-    ///   evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl
-    ///   evcal replay rec.h5 --port /dev/ttyACM0 --baud 921600 --sensor davis346
+    #[command(after_help = "Examples:\n  evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  \
+evcal replay rec.h5 --port /dev/ttyACM0 --baud 921600 --sensor davis346\n  \
+evcal replay rec.txt --port tcp:127.0.0.1:7878 --all-events -q > detections.jsonl")]
     Replay(replay::ReplayArgs),
     /// Record the detections of a device that has its own sensor, as JSON lines.
     ///
     /// Listens only. Live counts of windows, centres and windows lost (gaps in the device's
     /// window numbers). Ctrl-C stops cleanly with everything received so far written (exit
     /// status 130).
-    ///
-    /// Example:
-    ///   evcal collect --port /dev/ttyACM0 --out detections.jsonl --seconds 60
+    #[command(after_help = "Examples:\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  \
+evcal collect --port tcp:127.0.0.1:7878 --seconds 60 > detections.jsonl")]
     Collect(collect::CollectArgs),
     /// Run a virtual device on a TCP port: the firmware's protocol loop and detection core,
     /// here on the host, one connection at a time (each gets a fresh device).
-    ///
-    /// Example (two terminals):
-    ///   evcal device --listen 127.0.0.1:7878
-    ///   evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl
+    #[command(after_help = "Example (two terminals):\n  evcal device --listen 127.0.0.1:7878\n  \
+evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
     Device(device::DeviceArgs),
 }
 

@@ -136,6 +136,18 @@ fn summary(r: &ReplayReport) {
         r.frames_bad,
         if r.interrupted { "; interrupted" } else { "" }
     );
+    let hz = r.device.map_or(0, |h| h.clock_hz);
+    if let Some(s) = r.stats.filter(|s| hz > 0 && s.windows > 0) {
+        let ms = |ticks: u64| ticks as f64 * 1e3 / f64::from(hz) / f64::from(s.windows);
+        eprintln!(
+            "evcal: device time per window: input {:.2} ms, clustering {:.2} ms, fitting {:.2} ms, encoding {:.3} ms; {:.0} distance checks",
+            ms(s.input_ticks),
+            ms(s.cluster_ticks),
+            ms(s.fit_ticks),
+            ms(s.encode_ticks),
+            s.distance_checks as f64 / f64::from(s.windows)
+        );
+    }
     if let Some(s) = &r.stats {
         eprintln!(
             "evcal: device: {} events received, {} dropped by its input filter, {} lost for lack of buffer; {} windows; {} damaged frames from the host, {} sent again; {} events of an unfinished last window left out",
