@@ -1,42 +1,45 @@
 #!/usr/bin/env bash
-# Runs every cargo-fuzz target in fuzz/ for a bounded time each (default 30 s; the first
-# argument or EVCAL_FUZZ_SECONDS sets it), on the nightly toolchain. Installs cargo-fuzz when
-# missing (a few minutes of compiling, once per machine). Exits non-zero on the first crash;
-# the input that crashed is saved under fuzz/artifacts/<target>/.
-#   bash scripts/fuzz.sh          # all targets, 30 s each
-#   bash scripts/fuzz.sh 300 evt3 # one target, 5 minutes
+# Runs every cargo-fuzz target in fuzz/ for a bounded time each.
+#
+#   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]    (default: 60 s, every target)
+#
+# Targets are the [[bin]]s of fuzz/Cargo.toml (`cargo fuzz list`); a new file in
+# fuzz/fuzz_targets/ listed there is picked up here without change. Corpora grow in
+# fuzz/corpus/TARGET (not committed); a crash is saved in fuzz/artifacts/TARGET and fails
+# the run (reproduce: cd fuzz && cargo +nightly fuzz run TARGET artifacts/TARGET/crash-...).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-seconds="${1:-${EVCAL_FUZZ_SECONDS:-30}}"
-shift || true
+secs="${1:-60}"
+[ $# -gt 0 ] && shift
+bash scripts/setup.sh --fuzz
 
-if ! rustup toolchain list | grep -q '^nightly'; then
-  echo "fuzz: installing the nightly toolchain (cargo-fuzz needs it)"
-  rustup toolchain install nightly --profile minimal
-fi
-if ! cargo fuzz --version >/dev/null 2>&1; then
-  echo "fuzz: installing cargo-fuzz"
-  cargo install cargo-fuzz --locked --quiet
+# cargo fuzz builds with -Z flags (sanitizer, coverage): nightly if installed, else the
+# default toolchain told to accept them.
+toolchain=()
+if rustup toolchain list 2>/dev/null | grep -q '^nightly'; then
+  toolchain=(+nightly)
+else
+  export RUSTC_BOOTSTRAP=1
 fi
 
-targets=("$@")
-if [ "${#targets[@]}" -eq 0 ]; then
-  mapfile -t targets < <(cd fuzz && cargo +nightly fuzz list)
-fi
-mkdir -p target
+cd fuzz
+if [ $# -gt 0 ]; then targets=("$@"); else mapfile -t targets < <(cargo fuzz list); fi
+cargo "${toolchain[@]}" fuzz build
 for t in "${targets[@]}"; do
-  echo "=== fuzz $t for ${seconds}s"
-  mkdir -p "fuzz/corpus/$t"
-  rm -rf "fuzz/artifacts/$t"
-  log="target/fuzz-$t.log"
-  # -rss_limit_mb: the decoders allocate nothing; a large RSS would be a bug in a harness.
-  if ! (cd fuzz && cargo +nightly fuzz run "$t" -- -max_total_time="$seconds" -rss_limit_mb=1024 \
-        -print_final_stats=1) >"$log" 2>&1; then
-    tail -40 "$log"
-    echo "fuzz: $t failed; the input is in fuzz/artifacts/$t/ (full log: $log)"
+  echo "fuzz: $t for $secs s"
+  mkdir -p "corpus/$t"
+  # -max_total_time ends a run cleanly; a crash or a failure to run exits nonzero.
+  log="$(mktemp)"
+  status=0
+  cargo "${toolchain[@]}" fuzz run "$t" "corpus/$t" -- -max_total_time="$secs" -print_final_stats=1 >"$log" 2>&1 || status=$?
+  grep -E '^(Done|stat::number_of_executed_units)|ERROR|panicked|SUMMARY|Test unit written' "$log" || true
+  if [ "$status" -ne 0 ]; then
+    tail -n 40 "$log" >&2
+    rm -f "$log"
+    echo "fuzz: $t failed (exit $status); a failing input is kept in fuzz/artifacts/$t/" >&2
     exit 1
   fi
-  grep -E '^stat::number_of_executed_units' "$log" | sed "s/^/  $t: /" || true
+  rm -f "$log"
 done
-echo "fuzz: ${#targets[@]} targets ran ${seconds}s each without a failure"
+echo "fuzz: ${#targets[@]} targets, $secs s each, no failure"

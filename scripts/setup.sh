@@ -1,7 +1,15 @@
 #!/usr/bin/env bash
 # Installs everything evcal needs on a fresh machine of this kind (Debian + rustup).
 # Idempotent: re-running it only checks. Called by scripts/test.sh and the README.
+#   --fuzz   also cargo-fuzz (about a minute to build; scripts/fuzz.sh asks for it)
 set -euo pipefail
+want_fuzz=0
+for arg in "$@"; do
+  case "$arg" in
+    --fuzz) want_fuzz=1 ;;
+    *) echo "setup: unknown option $arg" >&2; exit 2 ;;
+  esac
+done
 
 need_apt=()
 dpkg -s libhdf5-dev >/dev/null 2>&1 || need_apt+=(libhdf5-dev)
@@ -53,5 +61,9 @@ done
 if ! python3 -c "import expelliarmus, numpy" >/dev/null 2>&1; then
   echo "setup: installing Python packages: expelliarmus numpy"
   python3 -m pip install --quiet --disable-pip-version-check "expelliarmus==1.1.12" numpy
+fi
+if [ "$want_fuzz" = 1 ] && ! command -v cargo-fuzz >/dev/null 2>&1; then
+  echo "setup: installing cargo-fuzz (crates.io)"
+  cargo install --quiet --locked cargo-fuzz
 fi
 echo "setup: ok"

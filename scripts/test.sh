@@ -18,8 +18,9 @@ cargo build -p evcal-core --target thumbv7em-none-eabihf --release
 cargo build -p evcal-core --target thumbv7em-none-eabihf --release --features defmt
 
 # The firmware: measured 80 s from a cold target directory on 2 shared cores (clippy for
-# three feature sets 42 s, three images with whole-program optimisation 36 s). Clippy for each board; the STM32F405 image and the defmt build must link
-# too (their memory map and defmt's linker script), though only the emulated board runs.
+# three feature sets 42 s, three images with whole-program optimisation 36 s). Clippy for
+# each board; the STM32F405 image and the defmt build must link too (their memory map and
+# defmt's linker script), though only the emulated board runs.
 fw=(-p evcal-firmware --target thumbv7em-none-eabihf --profile firmware)
 step "firmware: clippy and images for the Cortex-M4F (emulated board; STM32F405 board; with defmt)"
 cargo clippy "${fw[@]}" -- -D warnings
@@ -41,14 +42,18 @@ python3 scripts/make-format-fixtures.py target/test-data/formats-fresh
 EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test formats 2>&1 \
   | tee -a target/test-output.txt
 
-step "fuzz the EVT decoders (cargo-fuzz, nightly; 15 s a target)"
-bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-15}"
-
-# Repeat the runner's closing totals on one line for CI readers.
-awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
+step "fuzz every decoder and the detection pipeline (bounded: ${EVCAL_FUZZ_SECONDS:-12} s per target)"
+# About 3-4 minutes on a fresh 2-core machine: installing cargo-fuzz ~65 s, building the
+# targets ~60 s, then each target. Longer runs: bash scripts/fuzz.sh 600
+cargo fmt --manifest-path fuzz/Cargo.toml -- --check
+bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-12}"
 
 # The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
 # replay is 35 s of it); the test binary is the workspace tests' build, the image the one
-# built above. See tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which needs no QEMU.
+# built above. See tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which
+# needs no QEMU.
 step "firmware under QEMU (emulated Cortex-M4F board)"
-time cargo test -p evcal-tests --test firmware_qemu -- --ignored
+cargo test -p evcal-tests --test firmware_qemu -- --ignored 2>&1 | tee -a target/test-output.txt
+
+# Repeat the runner's closing totals on one line for CI readers.
+awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt

@@ -3,12 +3,17 @@
 //! One JSON object per window per line:
 //! `{"seq", "t_ref_us", "events", "noise", "centers": [{"u", "v", "r", "spread", "n", "converged"}]}`.
 //! Other programs read these names; they do not change.
+//!
+//! Centres are the wire's fixed-point values (1/1024 px, [`evcal_core::wire::fixed`]) whether
+//! they came over a link from a device or from the core run here, so `evcal detect` and a
+//! device replaying the same recording print the same bytes.
 
 use crate::recording::ReadError;
 use evcal_core::{
     config::MAX_CLUSTERS,
     detect::{DetectConfig, Detection, Detector},
     event::{Event, InputStats},
+    wire::{DetectionFrame, DetectionHeader, WireCentre},
 };
 use serde::{Deserialize, Serialize};
 
@@ -52,20 +57,33 @@ pub struct WindowRecord {
     pub centers: Vec<CenterRecord>,
 }
 
+impl CenterRecord {
+    /// The record of a centre as it crossed (or would cross) the link.
+    pub fn from_wire(c: &WireCentre) -> Self {
+        Self { u: c.u_px(), v: c.v_px(), r: c.r_px(), spread: c.spread_px(), n: c.n, converged: c.converged }
+    }
+}
+
 impl WindowRecord {
-    /// The record of a core detection.
-    pub fn from_detection<const C: usize>(d: &Detection<C>) -> Self {
+    /// The record of a window's counts and centres in their wire form.
+    pub fn from_wire(h: &DetectionHeader, centres: impl Iterator<Item = WireCentre>) -> Self {
         Self {
-            seq: d.info.seq,
-            t_ref_us: d.info.t_ref_us,
-            events: d.stats.events,
-            noise: d.stats.noise,
-            centers: d
-                .centres
-                .iter()
-                .map(|c| CenterRecord { u: c.u, v: c.v, r: c.r, spread: c.spread, n: c.n, converged: c.converged })
-                .collect(),
+            seq: h.seq,
+            t_ref_us: h.t_ref_us,
+            events: h.events,
+            noise: h.noise,
+            centers: centres.map(|c| CenterRecord::from_wire(&c)).collect(),
         }
+    }
+
+    /// The record of a detection received from a device.
+    pub fn from_frame(d: &DetectionFrame<'_>) -> Self {
+        Self::from_wire(&d.header, d.centres())
+    }
+
+    /// The record of a core detection, quantised exactly as the device's encoder does.
+    pub fn from_detection<const C: usize>(d: &Detection<C>) -> Self {
+        Self::from_wire(&DetectionHeader::from_detection(d), d.centres.iter().map(WireCentre::from_centre))
     }
 
     /// The record as one JSON line (no newline).

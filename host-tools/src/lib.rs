@@ -5,5 +5,6 @@ pub mod calib;
 pub mod detections;
 pub mod eval;
 pub mod grid;
+pub mod link;
 pub mod recording;
 pub mod sim;

@@ -41,9 +41,22 @@
 //!
 //! # Memory
 //!
-//! `Device` is large (the detector's window buffer and clusterer, about 47 KB with the
-//! default capacities, plus `RX + TX`): give it a `static` home. [`Device::new`] is a
-//! `const fn` for that. A host [`Config`] rebuilds the detector in place.
+//! `Device` is large: 49,920 bytes with the default capacities (the detector's window buffer
+//! and clusterer, about 47.6 KB, plus `RX + TX`). Give it a `static` home, built at compile
+//! time ([`Device::new`] and [`default_config`] are `const fn`), so that no temporary copy
+//! ever lands on the stack:
+//!
+//! ```
+//! use evcal_core::{event::SensorSize, wire::{default_config, Device, DeviceOptions}};
+//! static mut DEVICE: Device = Device::new(
+//!     default_config(SensorSize::DAVIS346),
+//!     DeviceOptions { clock_hz: 168_000_000, ..DeviceOptions::DEFAULT },
+//! );
+//! ```
+//!
+//! A host's [`Config`] resets the detector in place (`Detector::reconfigure`); measured on
+//! `thumbv7em-none-eabihf` (opt-level `s`), [`receive`](Device::receive) then needs under
+//! 200 bytes of stack.
 
 use super::{
     emit_core_detection, message::detection_frame_max, Ack, Config, Feed, FrameAccumulator, Hello, HelloReply,

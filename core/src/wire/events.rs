@@ -12,8 +12,8 @@
 //! * the polarity bit.
 //!
 //! The encoder picks the `k` that makes the batch shortest. On simulated DAVIS346 recordings
-//! this comes to about 2.5 bytes per event (see the crate's tests and the README); raw
-//! events are 8 bytes or more.
+//! this comes to 2.7 bytes per event in 512-byte frames, everything included (the
+//! `bytes_per_window_and_per_event` test); raw events are 8 bytes or more.
 //!
 //! Batches are self-contained (absolute `t0`), so a lost batch costs only its own events.
 

@@ -888,6 +888,36 @@ mod test {
         assert_eq!(DeviceMessage::parse(&pad), Err(Error::Invalid));
     }
 
+    /// A full window (96 centres, the capacity) with centres spread over the whole sensor,
+    /// radii from 2 px to a third of the height, spreads up to 3 px, clusters of up to 1000
+    /// events: under 1 KiB even on the largest sensor we support (Prophesee, 1280 x 720).
+    #[test]
+    fn a_full_window_is_under_1_kib_on_every_sensor() {
+        for (w, h) in [(346u32, 260u32), (640, 480), (1280, 720)] {
+            let header = DetectionHeader {
+                seq: 123_456,
+                t_ref_us: 3_600_000_000,
+                events: 4000,
+                noise: 900,
+                clusters: 96,
+                ..Default::default()
+            };
+            let c: Vec<WireCentre> = (0..96u32)
+                .map(|i| WireCentre {
+                    u: (((i * 7919) % w) << 10) as i32 + (i * 37 % 1024) as i32,
+                    v: (((i * 104_729) % h) << 10) as i32 + (i * 91 % 1024) as i32,
+                    r: (2 << 10) + (i * 409) % ((h / 3 - 2) << 10),
+                    spread: (i * 331) % (3 << 10),
+                    n: 20 + (i * 97 % 980) as u16,
+                    converged: i % 5 != 0,
+                })
+                .collect();
+            let f = emit(|o| emit_detection(&header, c.iter().copied(), o));
+            assert!(f.len() <= 1024, "{w} x {h}: {} B", f.len());
+            eprintln!("96 centres on {w} x {h}: {} B", f.len());
+        }
+    }
+
     #[test]
     fn detection_frame_fits_the_bound_in_the_worst_case() {
         let header = DetectionHeader {

@@ -218,3 +218,63 @@ pub fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
     let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     serde_json::to_writer(BufWriter::new(f), v).with_context(|| format!("writing {}", path.display()))
 }
+
+/// Where the device is and how to reach it.
+#[derive(Args, Clone)]
+pub struct LinkArgs {
+    /// The device: a serial port (e.g. /dev/ttyACM0, COM3) or tcp:HOST:PORT (QEMU's
+    /// `-serial tcp:127.0.0.1:PORT,server=on,wait=on,nodelay=on`, or `evcal device`).
+    #[arg(long)]
+    pub port: String,
+    /// Serial line rate in baud (ignored for tcp:).
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// Seconds to keep retrying a refused TCP connection (QEMU may still be starting).
+    #[arg(long, default_value_t = 10.0)]
+    pub connect_timeout: f64,
+}
+
+impl LinkArgs {
+    pub fn open(&self) -> Result<evcal_host::link::Link> {
+        let port = evcal_host::link::Port::parse(&self.port)?;
+        if !(self.connect_timeout.is_finite() && self.connect_timeout >= 0.0) {
+            bail!("--connect-timeout must be a non-negative number of seconds");
+        }
+        evcal_host::link::Link::open(&port, self.baud, std::time::Duration::from_secs_f64(self.connect_timeout))
+    }
+}
+
+/// A flag that Ctrl-C (or SIGTERM) sets, so that a command can stop cleanly with everything
+/// received so far written.
+pub fn stop_on_ctrl_c() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let s = std::sync::Arc::clone(&stop);
+    // Only fails if a handler is already set, and then that one stops us.
+    let _ = ctrlc::set_handler(move || s.store(true, std::sync::atomic::Ordering::Relaxed));
+    stop
+}
+
+/// Standard output or a created file, buffered.
+pub fn output(path: Option<&Path>) -> Result<Box<dyn std::io::Write>> {
+    Ok(match path {
+        Some(p) => Box::new(BufWriter::new(
+            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => Box::new(BufWriter::new(std::io::stdout().lock())),
+    })
+}
+
+/// A spinner with live counts, for commands whose length is unknown.
+pub fn spinner(quiet: bool, what: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new_spinner();
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} {msg:12} {elapsed}  {prefix}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+    );
+    pb.set_message(what.to_string());
+    pb.enable_steady_tick(std::time::Duration::from_millis(120));
+    pb
+}

@@ -6,6 +6,7 @@ use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize, fit::FitMethod, window::WindowConfig};
 use evcal_host::{
     eval::{self, ScoreRules},
+    link::replay::replay_virtual,
     sim::{Light, SimConfig, Trajectory},
 };
 use std::{
@@ -43,6 +44,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
     let rules = ScoreRules::default();
     let mut scores = Vec::new();
+    let mut link_report = None;
     for method in [FitMethod::Centroid, FitMethod::Ols, FitMethod::Erwls] {
         let mut d = det;
         d.fit.method = method;
@@ -50,13 +52,24 @@ pub fn run(a: DemoArgs) -> Result<()> {
         let mut s = eval::Score::default();
         let mut windows = 0u64;
         let mut write_err = None;
-        eval::detect_with_truth(&events, &sim, d, |w, t| {
-            windows += 1;
-            s.add(w, &eval::true_circles(t), &rules);
-            if method == FitMethod::Erwls && write_err.is_none() {
-                write_err = writeln!(out, "{}", w.to_json_line()).err();
+        if method == FitMethod::Erwls {
+            // The method evcal uses runs exactly as on a device: every window through the
+            // firmware's protocol loop, the wire encoder and the host's decoder.
+            let (records, link) = replay_virtual(&events, d).context("replaying through the virtual device")?;
+            for w in &records {
+                windows += 1;
+                s.add(w, &eval::true_circles(&sim.truth_at(w.t_ref_us)), &rules);
+                if write_err.is_none() {
+                    write_err = writeln!(out, "{}", w.to_json_line()).err();
+                }
             }
-        });
+            link_report = Some(link);
+        } else {
+            eval::detect_with_truth(&events, &sim, d, |w, t| {
+                windows += 1;
+                s.add(w, &eval::true_circles(t), &rules);
+            });
+        }
         if let Some(e) = write_err {
             return Err(e).context("writing detections");
         }
@@ -77,6 +90,15 @@ pub fn run(a: DemoArgs) -> Result<()> {
             100.0 * s.found_rate(),
             s.rms_px(),
             s.max_error_px
+        );
+    }
+    if let Some(l) = &link_report {
+        println!(
+            "  link (eRWLS run, through the device loop and wire codec): {} windows received, {} lost; {:.0} bytes/window back, {:.2} bytes/event replayed in",
+            l.windows,
+            l.windows_lost,
+            l.bytes_received as f64 / l.windows.max(1) as f64,
+            l.bytes_sent as f64 / l.events_sent.max(1) as f64
         );
     }
     println!("  (per-stage core timings: cargo bench -p evcal-host --bench core)");

@@ -2,10 +2,13 @@
 //!
 //! One module per command; `common` holds what several commands share.
 
+mod collect;
 mod common;
 mod demo;
 mod detect;
+mod device;
 mod info;
+mod replay;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -16,12 +19,13 @@ use clap::{Parser, Subcommand};
     version,
     about = "Calibrate event cameras (DAVIS346, DVXplorer, Prophesee) from raw events on an asymmetric circle grid",
     long_about = "evcal finds the circles of an asymmetric circle grid in raw event-camera data, \
-following the E-Calib method: events are cut into windows, clustered per circle (grid-hashed \
-DBSCAN), and each circle's slanted cylinder in (x, y, t) is fitted by reweighted least squares \
+following the E-Calib method: events are cut into windows, clustered per circle (DBSCAN \
+on the pixel grid), and each circle's slanted cylinder in (x, y, t) is fitted by reweighted least squares \
 (eRWLS) to give sub-pixel centres. The same fixed-memory core runs on a microcontroller beside \
 the sensor and here on the host.",
     after_help = "Examples:\n  evcal simulate --sensor davis346 --pattern 4x11 --seconds 5 --out rec.txt\n  \
-evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  evcal demo"
+evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  \
+evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  evcal demo"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -56,6 +60,32 @@ enum Command {
     /// --json prints one object with (at least) "format", "width", "height", "events",
     /// "t_first_us", "t_last_us".
     Info(info::InfoArgs),
+    /// Stream a recording into a device over serial or TCP and collect its detections.
+    ///
+    /// Hardware-in-the-loop: the device (firmware on a board, the firmware under QEMU, or
+    /// `evcal device`) runs the detection core; this sends it the recording's events under its
+    /// flow control and writes the windows it reports as JSON lines, the same lines `evcal
+    /// detect` prints for the recording. Nothing is sent before the device's Hello (or
+    /// --hello-timeout of silence). Frames the device reports damaged are sent again;
+    /// detections damaged on the way back are counted as lost. Ctrl-C stops cleanly with
+    /// everything received so far written (exit status 130).
+    #[command(after_help = "Examples:\n  evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  \
+evcal replay rec.h5 --port /dev/ttyACM0 --baud 921600 --sensor davis346\n  \
+evcal replay rec.txt --port tcp:127.0.0.1:7878 --all-events -q > detections.jsonl")]
+    Replay(replay::ReplayArgs),
+    /// Record the detections of a device that has its own sensor, as JSON lines.
+    ///
+    /// Listens only. Live counts of windows, centres and windows lost (gaps in the device's
+    /// window numbers). Ctrl-C stops cleanly with everything received so far written (exit
+    /// status 130).
+    #[command(after_help = "Examples:\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  \
+evcal collect --port tcp:127.0.0.1:7878 --seconds 60 > detections.jsonl")]
+    Collect(collect::CollectArgs),
+    /// Run a virtual device on a TCP port: the firmware's protocol loop and detection core,
+    /// here on the host, one connection at a time (each gets a fresh device).
+    #[command(after_help = "Example (two terminals):\n  evcal device --listen 127.0.0.1:7878\n  \
+evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
+    Device(device::DeviceArgs),
 }
 
 fn main() {
@@ -65,6 +95,9 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::Demo(a) => demo::run(a),
         Command::Info(a) => info::run(a),
+        Command::Replay(a) => replay::run(a),
+        Command::Collect(a) => collect::run(a),
+        Command::Device(a) => device::run(a),
     };
     if let Err(e) = r {
         eprintln!("evcal: error: {e:#}");

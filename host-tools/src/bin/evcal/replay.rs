@@ -1,0 +1,162 @@
+//! `evcal replay`: stream a recording into a device and collect its detections.
+
+use crate::common::{output, progress_bar, resolve_sensor, stop_on_ctrl_c, CoreArgs, LinkArgs, ReadArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use evcal_host::link::{
+    replay::{replay, ReplayOptions, ReplayReport},
+    Progress,
+};
+use std::{io::Write, path::PathBuf, time::Duration};
+
+#[derive(Args)]
+pub struct ReplayArgs {
+    /// The recording, in any format `evcal info` reads (see the README's formats table).
+    pub recording: PathBuf,
+    #[command(flatten)]
+    pub link: LinkArgs,
+    #[command(flatten)]
+    pub core: CoreArgs,
+    #[command(flatten)]
+    pub read: ReadArgs,
+    /// Write the JSON lines here instead of standard output.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+    /// Seconds to wait for the device's Hello before sending the configuration anyway.
+    #[arg(long, default_value_t = 3.0)]
+    pub hello_timeout: f64,
+    /// Milliseconds without an acknowledgement before frames are sent again.
+    #[arg(long, default_value_t = 1000)]
+    pub retry_ms: u64,
+    /// Send every event. By default only the events the device's windows will hold are sent
+    /// (this runs the same input filter and windowing to find them: the device cuts the same
+    /// windows), about an eighth of a busy recording.
+    #[arg(long)]
+    pub all_events: bool,
+    /// No progress bar or summary on standard error.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+pub fn run(a: ReplayArgs) -> Result<()> {
+    let rec = a.read.open(&a.recording, a.quiet)?;
+    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
+    let cfg = a.core.config(sensor)?;
+    if !(a.hello_timeout.is_finite() && a.hello_timeout >= 0.0) {
+        bail!("--hello-timeout must be a non-negative number of seconds");
+    }
+    if a.retry_ms == 0 {
+        bail!("--retry-ms must be at least 1");
+    }
+    let opts = ReplayOptions {
+        hello_timeout: Duration::from_secs_f64(a.hello_timeout),
+        retry_timeout: Duration::from_millis(a.retry_ms),
+        all_events: a.all_events,
+        ..ReplayOptions::default()
+    };
+    let stop = stop_on_ctrl_c();
+    let mut link = a.link.open()?;
+    let mut out = output(a.out.as_deref())?;
+    let pb = progress_bar(rec.file_bytes, a.quiet, "replaying");
+    let mut rec = rec;
+    let progress = std::cell::Cell::new(0u64);
+    let mut counter = 0u64;
+    let events = std::iter::from_fn(|| {
+        let e = rec.next();
+        counter += 1;
+        if counter % 16_384 == 0 {
+            progress.set(rec.progress_bytes());
+        }
+        e
+    });
+    let mut write_err: Option<std::io::Error> = None;
+    let result = replay(&mut link, events, cfg, &opts, &stop, &mut |p| match p {
+        Progress::Window(w) => {
+            if write_err.is_none() {
+                write_err = writeln!(out, "{}", w.to_json_line()).err();
+            }
+        }
+        Progress::Status(r) => {
+            pb.set_position(progress.get());
+            pb.set_prefix(status(r));
+        }
+    });
+    pb.finish_and_clear();
+    // Whatever happened, keep what arrived.
+    out.flush().context("writing detections")?;
+    if let Some(e) = write_err {
+        return Err(e).context("writing detections");
+    }
+    let r = result?;
+    if !a.quiet {
+        summary(&r);
+    }
+    if let Some(e) = &r.read_error {
+        bail!("reading {}: {e} (the events before it were replayed)", a.recording.display());
+    }
+    if r.interrupted {
+        std::process::exit(130);
+    }
+    Ok(())
+}
+
+fn status(r: &ReplayReport) -> String {
+    format!(
+        "windows {}  centres {}  lost {}  bad frames {}  resent {}  {:.0} kB out",
+        r.windows,
+        r.centres,
+        r.windows_lost,
+        r.frames_bad,
+        r.retransmitted,
+        r.bytes_sent as f64 / 1e3
+    )
+}
+
+fn summary(r: &ReplayReport) {
+    for n in &r.notes {
+        eprintln!("evcal: note: {n}");
+    }
+    eprintln!(
+        "evcal: {} events read, {} sent (the rest no window holds{})",
+        r.events_read,
+        r.events_sent,
+        if r.events_skipped > 0 { "; --all-events sends them" } else { "" }
+    );
+    eprintln!(
+        "evcal: {} events in {} batches ({:.2} bytes/event, {} frames sent again); {} windows, {} centres received ({:.0} bytes/window); {} windows lost, {} damaged frames{}",
+        r.events_sent,
+        r.batches,
+        r.bytes_sent as f64 / r.events_sent.max(1) as f64,
+        r.retransmitted,
+        r.windows,
+        r.centres,
+        r.bytes_received as f64 / r.windows.max(1) as f64,
+        r.windows_lost,
+        r.frames_bad,
+        if r.interrupted { "; interrupted" } else { "" }
+    );
+    let hz = r.device.map_or(0, |h| h.clock_hz);
+    if let Some(s) = r.stats.filter(|s| hz > 0 && s.windows > 0) {
+        let ms = |ticks: u64| ticks as f64 * 1e3 / f64::from(hz) / f64::from(s.windows);
+        eprintln!(
+            "evcal: device time per window: input {:.2} ms, clustering {:.2} ms, fitting {:.2} ms, encoding {:.3} ms; {:.0} distance checks",
+            ms(s.input_ticks),
+            ms(s.cluster_ticks),
+            ms(s.fit_ticks),
+            ms(s.encode_ticks),
+            s.distance_checks as f64 / f64::from(s.windows)
+        );
+    }
+    if let Some(s) = &r.stats {
+        eprintln!(
+            "evcal: device: {} events received, {} dropped by its input filter, {} lost for lack of buffer; {} windows; {} damaged frames from the host, {} sent again; {} events of an unfinished last window left out",
+            s.events_received,
+            s.out_of_sensor + s.time_backwards,
+            s.events_dropped,
+            s.windows,
+            s.frames_bad,
+            s.frames_discarded,
+            s.pending_events
+        );
+    }
+}
