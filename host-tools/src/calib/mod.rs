@@ -1,1 +1,467 @@
-//! Camera calibration solver.
+//! Intrinsic calibration from views of a planar target: Zhang's closed-form start, then
+//! Levenberg–Marquardt over the intrinsics, the distortion and every view's pose, in OpenCV's
+//! camera model.
+//!
+//! ```
+//! use evcal_host::calib::{calibrate, Options, View};
+//! # use evcal_host::calib::Intrinsics;
+//! # let truth = Intrinsics { fx: 350.0, fy: 351.0, cx: 172.0, cy: 131.0, k1: -0.3, k2: 0.1, p1: 0.0, p2: 0.0, k3: 0.0 };
+//! # let views = evcal_host::calib::synthetic_views(&truth, 12, 0.0, 7);
+//! // `views`: each a list of board points (metres, z = 0) and the pixels where they were seen.
+//! let cal = calibrate(&views, [346, 260], &Options::default()).expect("calibration");
+//! println!("fx {:.2} fy {:.2} cx {:.2} cy {:.2}, RMS {:.3} px", cal.intrinsics.fx, cal.intrinsics.fy,
+//!          cal.intrinsics.cx, cal.intrinsics.cy, cal.rms_px);
+//! # assert!((cal.intrinsics.fx - 350.0).abs() < 1e-6);
+//! ```
+//!
+//! The problem has one small block (the nine intrinsics) shared by all views and one 6-
+//! parameter block per view: each step solves the Schur complement onto the intrinsics and
+//! then each pose alone, so hundreds of views cost little more than their points. Views far
+//! worse than the others are set aside and named, with the reason; points far off are down-
+//! weighted (Huber) when `robust` is on.
+
+mod init;
+mod model;
+mod solve;
+
+pub use model::{Intrinsics, Pose, PARAMETER_NAMES};
+
+use nalgebra::{Rotation3, Vector3};
+use serde::Serialize;
+use std::fmt;
+
+/// One view of the target: board points (metres, on the plane z = 0) and where they were seen
+/// (pixels). The two lists pair up by index; a view may hold any subset of the target's
+/// points.
+#[derive(Debug, Clone, PartialEq)]
+pub struct View {
+    /// Board points, metres.
+    pub object: Vec<[f64; 3]>,
+    /// Their pixels.
+    pub image: Vec<[f64; 2]>,
+}
+
+/// What the solve may change, and how hard it tries.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Options {
+    /// Keep k3 at 0 (OpenCV's CALIB_FIX_K3).
+    pub fix_k3: bool,
+    /// Keep p1 = p2 = 0 (CALIB_ZERO_TANGENT_DIST).
+    pub zero_tangential: bool,
+    /// Keep fy / fx at the starting value (CALIB_FIX_ASPECT_RATIO).
+    pub fix_aspect_ratio: bool,
+    /// Keep the principal point at the starting value (CALIB_FIX_PRINCIPAL_POINT).
+    pub fix_principal_point: bool,
+    /// Start from these intrinsics instead of Zhang's closed form (CALIB_USE_INTRINSIC_GUESS).
+    pub start: Option<Intrinsics>,
+    /// Down-weight points whose residual is far above the others' (Huber), and set aside
+    /// views whose RMS is far above the others'. Off: plain least squares, as OpenCV.
+    pub robust: bool,
+    /// Most Levenberg–Marquardt steps per solve.
+    pub max_iterations: usize,
+    /// A step that lowers the cost by less than this fraction ends the solve.
+    pub tolerance: f64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            fix_k3: false,
+            zero_tangential: false,
+            fix_aspect_ratio: false,
+            fix_principal_point: false,
+            start: None,
+            robust: true,
+            max_iterations: 100,
+            tolerance: 1e-12,
+        }
+    }
+}
+
+/// A view set aside, and why.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Rejection {
+    /// Index of the view in the input.
+    pub view: usize,
+    /// Why, in words.
+    pub reason: String,
+}
+
+/// One view's outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ViewResult {
+    /// Index of the view in the input.
+    pub view: usize,
+    /// Points of the view.
+    pub points: usize,
+    /// RMS reprojection error of its points, px.
+    pub rms_px: f64,
+    /// Board → camera rotation (Rodrigues vector).
+    pub rvec: [f64; 3],
+    /// Board → camera translation, metres.
+    pub tvec: [f64; 3],
+}
+
+/// The result of a calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Calibration {
+    /// The intrinsics and distortion.
+    pub intrinsics: Intrinsics,
+    /// Image size, pixels (width, height).
+    pub image_size: [u32; 2],
+    /// RMS reprojection error over every point of the views used, px.
+    pub rms_px: f64,
+    /// Mean of the views' RMS errors, px.
+    pub mean_view_px: f64,
+    /// Median of the views' RMS errors, px.
+    pub median_view_px: f64,
+    /// One standard deviation of each parameter (0 for a fixed one), in the order of
+    /// [`PARAMETER_NAMES`].
+    pub std_dev: [f64; 9],
+    /// Every view used, with its error and pose.
+    pub views: Vec<ViewResult>,
+    /// Views set aside, with the reason.
+    pub rejected: Vec<Rejection>,
+    /// Points down-weighted by the robust loss to below half weight.
+    pub down_weighted_points: usize,
+    /// What the user should know: poorly constrained parameters, and the like.
+    pub warnings: Vec<String>,
+    /// Levenberg–Marquardt steps of the final solve.
+    pub iterations: usize,
+    /// Whether the final solve converged.
+    pub converged: bool,
+}
+
+/// Why a calibration could not be made.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CalibError {
+    /// No views at all.
+    NoViews,
+    /// Fewer usable views than a solve needs.
+    TooFewViews {
+        /// Views usable.
+        usable: usize,
+        /// Views needed.
+        needed: usize,
+    },
+    /// A point or pixel is not a finite number.
+    NotFinite {
+        /// The view.
+        view: usize,
+        /// The point within it.
+        point: usize,
+    },
+    /// The views do not determine a camera (all alike, or degenerate).
+    Degenerate(String),
+}
+
+impl fmt::Display for CalibError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CalibError::NoViews => write!(f, "no views to calibrate from"),
+            CalibError::TooFewViews { usable, needed } => write!(
+                f,
+                "{usable} usable view(s) of the target; a calibration needs at least {needed} (views with at least 6 points, not all on a line)"
+            ),
+            CalibError::NotFinite { view, point } => write!(f, "view {view}, point {point}: not a finite number"),
+            CalibError::Degenerate(why) => write!(f, "the views do not determine a camera: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for CalibError {}
+
+/// Fewest views a calibration accepts: Zhang's closed form needs three.
+pub const MIN_VIEWS: usize = 3;
+/// Fewest points a view needs to take part (a homography needs four, a pose with
+/// distortion a few more).
+pub const MIN_POINTS_PER_VIEW: usize = 6;
+
+/// Calibrates a camera of `image_size` (width, height) from `views`.
+pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result<Calibration, CalibError> {
+    if views.is_empty() {
+        return Err(CalibError::NoViews);
+    }
+    for (v, view) in views.iter().enumerate() {
+        for (p, (o, m)) in view.object.iter().zip(&view.image).enumerate() {
+            if !(o.iter().all(|x| x.is_finite()) && m.iter().all(|x| x.is_finite())) {
+                return Err(CalibError::NotFinite { view: v, point: p });
+            }
+        }
+    }
+    let mut rejected = Vec::new();
+    // Views that can take part: enough points, and a homography.
+    let mut homographies = Vec::new();
+    let mut usable = Vec::new();
+    for (v, view) in views.iter().enumerate() {
+        let n = view.object.len().min(view.image.len());
+        if n < MIN_POINTS_PER_VIEW {
+            rejected.push(Rejection { view: v, reason: format!("{n} points; at least {MIN_POINTS_PER_VIEW} needed") });
+            continue;
+        }
+        match init::homography(&view.object[..n], &view.image[..n]) {
+            Some(h) => {
+                homographies.push(h);
+                usable.push(v);
+            }
+            None => rejected.push(Rejection { view: v, reason: "points degenerate (collinear or coincident)".into() }),
+        }
+    }
+    if usable.len() < MIN_VIEWS {
+        return Err(CalibError::TooFewViews { usable: usable.len(), needed: MIN_VIEWS });
+    }
+    let centre = [(f64::from(image_size[0]) - 1.0) * 0.5, (f64::from(image_size[1]) - 1.0) * 0.5];
+    let start = match opts.start {
+        Some(s) => s,
+        None => {
+            let [fx, fy, cx, cy] = match init::zhang(&homographies) {
+                // Zhang's principal point can wander off with few or similar views: then take
+                // the image centre, as OpenCV does.
+                Some([fx, fy, cx, cy]) if (cx - centre[0]).abs() < centre[0] && (cy - centre[1]).abs() < centre[1] => {
+                    [fx, fy, cx, cy]
+                }
+                _ => {
+                    let [fx, fy] = init::focal_with_centre(&homographies, centre).ok_or_else(|| {
+                        CalibError::Degenerate("no focal length fits the views (are they all parallel to the sensor?)".into())
+                    })?;
+                    [fx, fy, centre[0], centre[1]]
+                }
+            };
+            Intrinsics { fx, fy, cx, cy, k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 }
+        }
+    };
+    let mut poses = Vec::with_capacity(usable.len());
+    let mut kept = Vec::with_capacity(usable.len());
+    for (&v, h) in usable.iter().zip(&homographies) {
+        match init::pose_from_homography(h, &start) {
+            Some(p) => {
+                poses.push(p);
+                kept.push(v);
+            }
+            None => rejected.push(Rejection { view: v, reason: "no pose puts the target in front of the camera".into() }),
+        }
+    }
+    if kept.len() < MIN_VIEWS {
+        return Err(CalibError::TooFewViews { usable: kept.len(), needed: MIN_VIEWS });
+    }
+
+    let mut mask = [true; 9];
+    if opts.fix_principal_point {
+        mask[2] = false;
+        mask[3] = false;
+    }
+    if opts.zero_tangential {
+        mask[6] = false;
+        mask[7] = false;
+    }
+    if opts.fix_k3 {
+        mask[8] = false;
+    }
+    let free = solve::Free { mask, aspect: opts.fix_aspect_ratio.then_some(start.fy / start.fx) };
+    let mut k = start;
+    if opts.zero_tangential {
+        k.p1 = 0.0;
+        k.p2 = 0.0;
+    }
+    if opts.fix_k3 {
+        k.k3 = 0.0;
+    }
+
+    // Per-point weights, per kept view.
+    let mut weights: Vec<Vec<f64>> = kept.iter().map(|&v| vec![1.0; views[v].object.len()]).collect();
+    let mut sol;
+    let rounds = if opts.robust { 4 } else { 1 };
+    let mut round = 0;
+    loop {
+        let data: Vec<solve::ViewData> = kept
+            .iter()
+            .zip(&weights)
+            .map(|(&v, w)| solve::ViewData { object: &views[v].object, image: &views[v].image, weight: w })
+            .collect();
+        sol = solve::solve(&data, k, poses.clone(), &free, opts.max_iterations, opts.tolerance)
+            .ok_or_else(|| CalibError::Degenerate("the solve diverged (a point fell behind the camera)".into()))?;
+        k = sol.intrinsics;
+        poses = sol.poses.clone();
+        round += 1;
+        if round >= rounds {
+            break;
+        }
+        // Robust round: views far worse than the others go; points far off are weighed down.
+        let errors: Vec<Vec<f64>> = kept.iter().zip(&poses).map(|(&v, p)| residuals(&views[v], &k, p)).collect();
+        let view_rms: Vec<f64> = errors.iter().map(|e| rms(e)).collect();
+        let (med, mad) = median_mad(&view_rms);
+        let limit = (med + 5.0 * 1.4826 * mad).max(2.0 * med);
+        let bad = view_rms.iter().filter(|&&r| r > limit).count();
+        let may_reject = kept.len() - bad >= MIN_VIEWS;
+        let mut next_kept = Vec::new();
+        let mut next_poses = Vec::new();
+        let mut next_weights = Vec::new();
+        for (((&v, p), r), e) in kept.iter().zip(&poses).zip(&view_rms).zip(&errors) {
+            if *r > limit && may_reject {
+                rejected.push(Rejection {
+                    view: v,
+                    reason: format!("RMS {r:.3} px, far above the views' median {med:.3} px (limit {limit:.3} px)"),
+                });
+                continue;
+            }
+            next_kept.push(v);
+            next_poses.push(*p);
+            next_weights.push(e.clone());
+        }
+        // Huber weights from every kept point's error: the errors are 2-D distances, whose
+        // median is about 1.18 σ for Gaussian noise; beyond 2.5 σ a point weighs less.
+        let all: Vec<f64> = next_weights.iter().flatten().copied().collect();
+        let (pmed, _) = median_mad(&all);
+        let delta = (2.5 / 1.18 * pmed).max(1e-9);
+        for e in next_weights.iter_mut() {
+            for x in e.iter_mut() {
+                *x = if *x <= delta { 1.0 } else { delta / *x };
+            }
+        }
+        kept = next_kept;
+        poses = next_poses;
+        weights = next_weights;
+        if kept.len() < MIN_VIEWS {
+            return Err(CalibError::TooFewViews { usable: kept.len(), needed: MIN_VIEWS });
+        }
+    }
+
+    // Results per view (unweighted errors).
+    let mut view_results = Vec::with_capacity(kept.len());
+    let (mut sq, mut count) = (0.0, 0usize);
+    for (&v, p) in kept.iter().zip(&poses) {
+        let e = residuals(&views[v], &k, p);
+        sq += e.iter().map(|x| x * x).sum::<f64>();
+        count += e.len();
+        view_results.push(ViewResult { view: v, points: e.len(), rms_px: rms(&e), rvec: p.rvec(), tvec: p.tvec() });
+    }
+    let rms_px = (sq / count.max(1) as f64).sqrt();
+    let per_view: Vec<f64> = view_results.iter().map(|r| r.rms_px).collect();
+    let mean_view_px = per_view.iter().sum::<f64>() / per_view.len().max(1) as f64;
+    let (median_view_px, _) = median_mad(&per_view);
+    let down_weighted_points = weights.iter().flatten().filter(|&&w| w < 0.5).count();
+
+    // Standard deviations: the residual variance times the inverse of the reduced normal
+    // matrix (the intrinsics' block of (JᵀWJ)⁻¹).
+    let n_free = sol.free.len();
+    let dof = (2 * count).saturating_sub(n_free + 6 * kept.len()).max(1) as f64;
+    let sigma2 = sol.cost / dof;
+    let mut std_dev = [0.0; 9];
+    if let Some(inv) = sol.reduced.clone().try_inverse() {
+        for (c, &i) in sol.free.iter().enumerate() {
+            std_dev[i] = (sigma2 * inv[(c, c)]).max(0.0).sqrt();
+        }
+        if let Some(a) = free.aspect {
+            std_dev[1] = a * std_dev[0];
+        }
+    }
+    let warnings = constraint_warnings(&k, &std_dev, image_size);
+    Ok(Calibration {
+        intrinsics: k,
+        image_size,
+        rms_px,
+        mean_view_px,
+        median_view_px,
+        std_dev,
+        views: view_results,
+        rejected,
+        down_weighted_points,
+        warnings,
+        iterations: sol.iterations,
+        converged: sol.converged,
+    })
+}
+
+/// Reprojection error (px) of each point of a view.
+fn residuals(view: &View, k: &Intrinsics, pose: &Pose) -> Vec<f64> {
+    view.object
+        .iter()
+        .zip(&view.image)
+        .map(|(o, m)| match k.project(&(pose.rotation * Vector3::from(*o) + pose.translation)) {
+            Some(p) => (p[0] - m[0]).hypot(p[1] - m[1]),
+            None => f64::INFINITY,
+        })
+        .collect()
+}
+
+fn rms(e: &[f64]) -> f64 {
+    (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt()
+}
+
+/// Median and median absolute deviation.
+fn median_mad(x: &[f64]) -> (f64, f64) {
+    if x.is_empty() {
+        return (0.0, 0.0);
+    }
+    let mut s: Vec<f64> = x.to_vec();
+    s.sort_by(f64::total_cmp);
+    let med = s[s.len() / 2];
+    let mut d: Vec<f64> = s.iter().map(|v| (v - med).abs()).collect();
+    d.sort_by(f64::total_cmp);
+    (med, d[d.len() / 2])
+}
+
+/// Warnings for parameters the views leave poorly constrained: a parameter is named when
+/// moving it by one standard deviation moves the image of a sensor corner by more than
+/// half a pixel (what the points can tell apart is far finer).
+fn constraint_warnings(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> Vec<String> {
+    let corner = |k: &Intrinsics| {
+        // The normalised point that the base camera sees at the sensor's corner.
+        let (u, v) = (f64::from(size[0]) - 1.0, f64::from(size[1]) - 1.0);
+        let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
+        (x, y)
+    };
+    let (x, y) = corner(k);
+    let base = k.distort(x, y);
+    let mut out = Vec::new();
+    for (i, name) in PARAMETER_NAMES.iter().enumerate() {
+        if std_dev[i] <= 0.0 {
+            continue;
+        }
+        let mut a = k.to_array();
+        a[i] += std_dev[i];
+        let moved = Intrinsics::from_array(a).distort(x, y);
+        let shift = (moved[0] - base[0]).hypot(moved[1] - base[1]);
+        if shift > 0.5 {
+            out.push(format!(
+                "{name} is poorly constrained: ±{:.3e} (1σ) moves the image corner by {shift:.2} px; add views that fill the sensor's corners and tilt the target more",
+                std_dev[i]
+            ));
+        }
+    }
+    out
+}
+
+/// Views of an asymmetric 4x11 grid (24 mm) seen by `truth` from a spread of poses, with
+/// Gaussian pixel noise of `noise_px`: for examples and tests.
+pub fn synthetic_views(truth: &Intrinsics, count: usize, noise_px: f64, seed: u64) -> Vec<View> {
+    use rand::{RngExt, SeedableRng};
+    use rand_distr::{Distribution, Normal};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let normal = Normal::new(0.0, noise_px.max(0.0)).unwrap_or(Normal::new(0.0, 0.0).expect("valid"));
+    let board: Vec<[f64; 3]> =
+        (0..11).flat_map(|i| (0..4).map(move |j| [i as f64 * 0.024, (2 * j + i % 2) as f64 * 0.024, 0.0])).collect();
+    let mut views = Vec::new();
+    while views.len() < count {
+        let (ax, ay, az) = (rng.random_range(-0.6..0.6), rng.random_range(-0.6..0.6), rng.random_range(-3.1..3.1));
+        let rot = Rotation3::from_scaled_axis(Vector3::new(ax, ay, az));
+        let centre = rot * Vector3::new(0.12, 0.084, 0.0);
+        let depth = rng.random_range(0.35..0.6);
+        let offset = Vector3::new(rng.random_range(-0.12..0.12), rng.random_range(-0.09..0.09), depth);
+        let pose = Pose { rotation: rot, translation: offset - centre };
+        let mut image = Vec::new();
+        let mut ok = true;
+        for p in &board {
+            match truth.project(&(pose.rotation * Vector3::from(*p) + pose.translation)) {
+                Some(m) if m[0] >= 0.0 && m[1] >= 0.0 && m[0] <= 345.0 && m[1] <= 259.0 => {
+                    image.push([m[0] + normal.sample(&mut rng), m[1] + normal.sample(&mut rng)])
+                }
+                _ => ok = false,
+            }
+        }
+        if ok {
+            views.push(View { object: board.clone(), image });
+        }
+    }
+    views
+}
