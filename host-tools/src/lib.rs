@@ -7,4 +7,5 @@ pub mod eval;
 pub mod grid;
 pub mod link;
 pub mod recording;
+pub mod select;
 pub mod sim;

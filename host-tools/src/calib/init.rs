@@ -47,7 +47,7 @@ pub(crate) fn homography(object: &[[f64; 3]], image: &[[f64; 2]]) -> Option<Matr
     // The second smallest eigenvalue near zero too means the points do not pin it down.
     let mut sorted: Vec<f64> = eig.eigenvalues.iter().copied().collect();
     sorted.sort_by(f64::total_cmp);
-    if !(sorted[1] > 1e-10 * sorted[8]) {
+    if sorted[1].is_nan() || sorted[1] <= 1e-10 * sorted[8] {
         return None;
     }
     let hm = tm.try_inverse()? * hn * tn;
@@ -170,18 +170,28 @@ pub(crate) fn pose_from_homography(h: &Matrix3<f64>, k: &Intrinsics) -> Option<P
 mod test {
     use super::*;
 
-    fn views(n: usize) -> (Intrinsics, Vec<(Vec<[f64; 3]>, Vec<[f64; 2]>, Pose)>) {
+    type Seen = (Vec<[f64; 3]>, Vec<[f64; 2]>, Pose);
+
+    fn views(n: usize) -> (Intrinsics, Vec<Seen>) {
         let k = Intrinsics { fx: 355.0, fy: 354.0, cx: 170.0, cy: 129.0, k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 };
-        let board: Vec<[f64; 3]> =
-            (0..11).flat_map(|i| (0..4).map(move |j| [i as f64 * 0.024, (2 * j + i % 2) as f64 * 0.024, 0.0])).collect();
+        let board: Vec<[f64; 3]> = (0..11)
+            .flat_map(|i| (0..4).map(move |j| [i as f64 * 0.024, (2 * j + i % 2) as f64 * 0.024, 0.0]))
+            .collect();
         let out = (0..n)
             .map(|v| {
                 let a = v as f64;
                 let pose = Pose {
-                    rotation: Rotation3::from_scaled_axis(Vector3::new(0.4 * (a * 1.3).sin(), 0.35 * (a * 0.7).cos(), 0.2 * a.sin())),
+                    rotation: Rotation3::from_scaled_axis(Vector3::new(
+                        0.4 * (a * 1.3).sin(),
+                        0.35 * (a * 0.7).cos(),
+                        0.2 * a.sin(),
+                    )),
                     translation: Vector3::new(-0.12 + 0.01 * a.cos(), -0.08, 0.45 + 0.05 * (a * 0.9).sin()),
                 };
-                let img = board.iter().map(|p| k.project(&(pose.rotation * Vector3::from(*p) + pose.translation)).unwrap()).collect();
+                let img = board
+                    .iter()
+                    .map(|p| k.project(&(pose.rotation * Vector3::from(*p) + pose.translation)).unwrap())
+                    .collect();
                 (board.clone(), img, pose)
             })
             .collect();

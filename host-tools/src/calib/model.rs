@@ -194,7 +194,11 @@ mod test {
             let q = project(&Intrinsics::from_array(a), &pose, &obj).unwrap();
             for r in 0..2 {
                 let fd = (q.pixel[r] - p.pixel[r]) / step;
-                assert!((fd - p.d_intrinsics[r][i]).abs() <= 1e-4 * fd.abs().max(1.0), "intrinsic {i} row {r}: {fd} vs {}", p.d_intrinsics[r][i]);
+                assert!(
+                    (fd - p.d_intrinsics[r][i]).abs() <= 1e-4 * fd.abs().max(1.0),
+                    "intrinsic {i} row {r}: {fd} vs {}",
+                    p.d_intrinsics[r][i]
+                );
             }
         }
         for i in 0..6 {
@@ -203,7 +207,11 @@ mod test {
             let q = project(&k, &pose.moved(&d), &obj).unwrap();
             for r in 0..2 {
                 let fd = (q.pixel[r] - p.pixel[r]) / 1e-7;
-                assert!((fd - p.d_pose[r][i]).abs() <= 1e-3 * fd.abs().max(1.0), "pose {i} row {r}: {fd} vs {}", p.d_pose[r][i]);
+                assert!(
+                    (fd - p.d_pose[r][i]).abs() <= 1e-3 * fd.abs().max(1.0),
+                    "pose {i} row {r}: {fd} vs {}",
+                    p.d_pose[r][i]
+                );
             }
         }
     }

@@ -100,8 +100,8 @@ fn normal(views: &[ViewData], k: &Intrinsics, poses: &[Pose], free: &Free) -> Op
         let (mut v, mut w, mut gv) = (M6::zeros(), SMatrix::<f64, 9, 6>::zeros(), V6::zeros());
         for ((o, m), &wt) in view.object.iter().zip(view.image).zip(view.weight) {
             let p = project(k, pose, o)?;
-            for r in 0..2 {
-                let res = p.pixel[r] - m[r];
+            for (r, &mr) in m.iter().enumerate() {
+                let res = p.pixel[r] - mr;
                 let jt = free_row(&p.d_intrinsics[r], free, idx);
                 let jp = V6::from_row_slice(&p.d_pose[r]);
                 out.u += wt * jt * jt.transpose();
