@@ -47,7 +47,7 @@ pub struct CenterRecord {
 pub struct WindowRecord {
     /// Window sequence number.
     pub seq: u32,
-    /// Reference time of the window (its first event), µs.
+    /// Reference time of the window (the middle of its events' span, where its centres are given), µs.
     pub t_ref_us: u64,
     /// Events in the window.
     pub events: u16,
@@ -91,6 +91,51 @@ impl WindowRecord {
         // Serialising plain numbers and strings cannot fail.
         serde_json::to_string(self).unwrap_or_default()
     }
+}
+
+/// A detections file that cannot be read.
+#[derive(Debug)]
+pub enum ReadDetectionsError {
+    /// The file could not be read.
+    Io(std::io::Error),
+    /// A line is not a window record.
+    Line {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
+}
+
+impl std::fmt::Display for ReadDetectionsError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ReadDetectionsError::Io(e) => write!(f, "{e}"),
+            ReadDetectionsError::Line { line, message } => write!(
+                f,
+                "line {line}: not a window record ({message}); expected one JSON object per line with \"seq\", \"t_ref_us\", \"events\", \"noise\", \"centers\", as `evcal detect` writes"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ReadDetectionsError {}
+
+/// Reads a detections file (JSON lines, as `evcal detect`, `replay` and `collect` write it).
+/// Blank lines are skipped; any other line that is not a window record is an error naming
+/// the line, so nothing is dropped silently.
+pub fn read_jsonl(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+    let mut out = Vec::new();
+    for (i, line) in input.lines().enumerate() {
+        let line = line.map_err(ReadDetectionsError::Io)?;
+        if line.trim().is_empty() {
+            continue;
+        }
+        let r: WindowRecord = serde_json::from_str(&line)
+            .map_err(|e| ReadDetectionsError::Line { line: i + 1, message: e.to_string() })?;
+        out.push(r);
+    }
+    Ok(out)
 }
 
 /// Totals of one run over a recording.
@@ -139,4 +184,27 @@ pub fn run(
     s.time_backwards = input.time_backwards;
     s.events_in_last_partial_window = det.pending() as u64;
     Ok(s)
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    #[test]
+    fn json_lines_round_trip_and_bad_lines_are_named() {
+        let w = WindowRecord {
+            seq: 3,
+            t_ref_us: 12_345,
+            events: 4000,
+            noise: 120,
+            centers: vec![CenterRecord { u: 10.5, v: 20.25, r: 6.0, spread: 0.3, n: 55, converged: true }],
+        };
+        let text = format!("{}\n\n{}\n", w.to_json_line(), w.to_json_line());
+        assert_eq!(read_jsonl(text.as_bytes()).unwrap(), vec![w.clone(), w.clone()]);
+        let bad = format!("{}\n{{\"seq\": 1}}\n", w.to_json_line());
+        let e = read_jsonl(bad.as_bytes()).unwrap_err();
+        assert!(matches!(e, ReadDetectionsError::Line { line: 2, .. }), "{e}");
+        assert!(e.to_string().starts_with("line 2: not a window record"), "{e}");
+        assert_eq!(read_jsonl(&b""[..]).unwrap(), vec![]);
+    }
 }

@@ -91,7 +91,7 @@ pub struct Config {
 pub struct DetectionHeader {
     /// Window sequence number (from 0 per session): gaps show lost frames.
     pub seq: u32,
-    /// Time of the window's first event, µs.
+    /// The window's reference time (the middle of its events' span; its centres are given at it), µs.
     pub t_ref_us: u64,
     /// Events in the window.
     pub events: u16,
