@@ -1,1 +1,672 @@
-//! Finds the asymmetric circle grid among one window's centres.
+//! Finds the asymmetric circle grid among one window's centres, and pairs each of its
+//! points with its board point.
+//!
+//! A window's centres are the grid's circles (some missing) among clutter: discs and blobs
+//! of the background, fits to partial circles at the sensor's edge. The search has three
+//! steps, none of which tries subsets of the centres:
+//!
+//! 1. **Consistency filter** (the E-Calib paper's modified hierarchical clustering, its
+//!    eq. 8–11): the grid's circles share a radius and a nearest-neighbour distance (the
+//!    diagonal spacing), the clutter's are scattered. The densest mode of (radius,
+//!    nearest-neighbour distance) gives the grid's scale; centres far from it are set aside.
+//! 2. **Lattice growth**: the board is a square lattice turned by 45° (diagonal neighbours
+//!    `S√2` apart). From a seed whose four nearest neighbours form two opposite pairs, the
+//!    lattice is grown point by point, each step predicted from the points already placed
+//!    (extrapolating along a lattice line follows perspective and distortion), accepting a
+//!    centre only near the prediction and with a radius like its neighbour's.
+//! 3. **Placement and checks**: of the eight ways to lay the lattice's axes on the board,
+//!    only those that put every point inside the pattern, on the right parity, and keep the
+//!    board's front towards the camera (a mirror image would put the camera behind the
+//!    board) survive. A unique survivor is the answer; several are a miss, except for the
+//!    pattern's own 180° symmetry (even COLS only), settled by one rule (below). Every line
+//!    of the lattice must then be smooth, and a homography must fit: a wrong ordering is
+//!    worse than a miss.
+//!
+//! **Pattern convention** (as E-Calib): `ROWSxCOLS`, spacing `S`; board point (i, j), i <
+//! COLS, j < ROWS, is at (i·S, (2j + i mod 2)·S, 0) and has index `i·ROWS + j`.
+//!
+//! **The 180° rule.** A grid with an odd number of columns (4x11, 3x9) has no symmetry that
+//! keeps its front to the camera: its labelling is unique. With even COLS, turning the
+//! board by 180° maps the grid onto itself; evcal then takes the labelling whose board x
+//! axis (increasing i) points to the image's right (+u), or, when the axis is vertical
+//! within 1°, down (+v). It does not change the intrinsics; a board swept through vertical
+//! flips its labelling there, and the solver takes each view's pose on its own.
+
+use crate::detections::CenterRecord;
+use std::collections::HashMap;
+use std::fmt;
+
+/// An asymmetric circle grid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pattern {
+    /// Rows: circles per column (j < rows).
+    pub rows: usize,
+    /// Columns (i < cols).
+    pub cols: usize,
+    /// Spacing S, metres: circles on one column are 2·S apart, diagonal neighbours S·√2.
+    pub spacing: f64,
+}
+
+/// Largest pattern side accepted (the wire carries at most 96 centres a window anyway).
+pub const MAX_PATTERN_SIDE: usize = 64;
+
+impl Pattern {
+    /// A pattern of `rows` x `cols` circles, `spacing` metres.
+    pub fn new(rows: usize, cols: usize, spacing: f64) -> Result<Self, String> {
+        if !(2..=MAX_PATTERN_SIDE).contains(&rows) || !(3..=MAX_PATTERN_SIDE).contains(&cols) {
+            return Err(format!(
+                "pattern {rows}x{cols}: an asymmetric circle grid needs 2 to {MAX_PATTERN_SIDE} rows and 3 to {MAX_PATTERN_SIDE} columns"
+            ));
+        }
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(format!("spacing {spacing}: must be a positive length in metres (e.g. 0.024)"));
+        }
+        Ok(Self { rows, cols, spacing })
+    }
+
+    /// Parses `ROWSxCOLS` (e.g. `4x11`).
+    pub fn parse(text: &str, spacing: f64) -> Result<Self, String> {
+        let bad = || format!("pattern '{text}': expected ROWSxCOLS, e.g. 4x11 (4 circles per column, 11 columns)");
+        let (r, c) = text.trim().split_once(['x', 'X']).ok_or_else(bad)?;
+        let rows = r.trim().parse().map_err(|_| bad())?;
+        let cols = c.trim().parse().map_err(|_| bad())?;
+        Self::new(rows, cols, spacing)
+    }
+
+    /// Number of circles.
+    pub fn len(&self) -> usize {
+        self.rows * self.cols
+    }
+
+    /// Whether the pattern has no circles (never, for a pattern made by [`Pattern::new`]).
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The board point of circle `index` (`i·rows + j`), metres.
+    pub fn object_point(&self, index: usize) -> [f64; 3] {
+        let (i, j) = (index / self.rows, index % self.rows);
+        [i as f64 * self.spacing, (2 * j + i % 2) as f64 * self.spacing, 0.0]
+    }
+
+    /// Every board point, by index.
+    pub fn object_points(&self) -> Vec<[f64; 3]> {
+        (0..self.len()).map(|k| self.object_point(k)).collect()
+    }
+
+    /// The layout as text, to compare with the printed board: one line per board row
+    /// (y = 0, S, 2S, ...), `o` a circle, index 0 at the top left and i growing to the right.
+    pub fn picture(&self) -> String {
+        let mut s = String::new();
+        for k in 0..2 * self.rows {
+            for i in 0..self.cols {
+                s.push(if (k + i) % 2 == 0 { 'o' } else { ' ' });
+                if i + 1 < self.cols {
+                    s.push(' ');
+                }
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
+/// One circle of the grid as found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridPoint {
+    /// Index of its board point (`i·rows + j`).
+    pub index: usize,
+    /// Image position, px.
+    pub image: [f64; 2],
+    /// Radius of the fitted circle, px.
+    pub radius_px: f64,
+}
+
+/// The grid found in one window.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GridDetection {
+    /// The circles found, by index; all of them, or a part spanning every row and column.
+    pub points: Vec<GridPoint>,
+    /// RMS distance of the points from a homography fitted to them, px (distortion makes
+    /// it a few tenths even for perfect centres).
+    pub homography_rms_px: f64,
+}
+
+/// Why no grid was returned.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Miss {
+    /// Fewer usable centres than the grid needs.
+    TooFewCentres,
+    /// No centre has the four neighbours of a lattice point.
+    NoLattice,
+    /// A lattice was found but holds too few of the grid's points.
+    TooFewPoints,
+    /// The lattice fits the pattern in no way that keeps the board's front to the camera
+    /// (it is larger than the pattern, or a mirror image).
+    NoPlacement,
+    /// The lattice fits the pattern in more than one way (rows or columns missing at its
+    /// edge): the labelling is not known.
+    Ambiguous,
+    /// The labelled points fail the smoothness or homography check.
+    Inconsistent,
+}
+
+impl Miss {
+    /// Every reason, for reports.
+    pub const ALL: [Miss; 6] =
+        [Miss::TooFewCentres, Miss::NoLattice, Miss::TooFewPoints, Miss::NoPlacement, Miss::Ambiguous, Miss::Inconsistent];
+}
+
+impl fmt::Display for Miss {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Miss::TooFewCentres => "too few centres",
+            Miss::NoLattice => "no lattice",
+            Miss::TooFewPoints => "too few grid points",
+            Miss::NoPlacement => "lattice does not fit the pattern",
+            Miss::Ambiguous => "rows or columns missing at the edge (ambiguous)",
+            Miss::Inconsistent => "failed the consistency checks",
+        })
+    }
+}
+
+/// What the finder accepts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FindOptions {
+    /// Fewest points of the pattern a detection must hold, as a fraction of all. Missing
+    /// circles are common (a circle moving along its own edge fires few events); the
+    /// labelling stays certain as long as every row and column is seen.
+    pub min_fraction: f64,
+}
+
+impl Default for FindOptions {
+    fn default() -> Self {
+        Self { min_fraction: 0.6 }
+    }
+}
+
+/// A usable centre.
+#[derive(Debug, Clone, Copy)]
+struct Pt {
+    p: [f64; 2],
+    r: f64,
+}
+
+/// Lattice coordinates: steps along the two diagonal directions of the board.
+type Cell = (i32, i32);
+
+/// Most seeds tried before giving up.
+const MAX_SEEDS: usize = 8;
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// Finds the grid of `pattern` among `centres`.
+pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions) -> Result<GridDetection, Miss> {
+    let m_total = pattern.len();
+    let needed = ((opts.min_fraction.clamp(0.0, 1.0) * m_total as f64).ceil() as usize).max(6);
+    let pts: Vec<Pt> = centres
+        .iter()
+        .filter(|c| c.u.is_finite() && c.v.is_finite() && c.r.is_finite() && c.r > 0.0)
+        .filter(|c| c.u.abs() < 1e6 && c.v.abs() < 1e6 && c.r < 1e6)
+        .map(|c| Pt { p: [f64::from(c.u), f64::from(c.v)], r: f64::from(c.r) })
+        .collect();
+    if pts.len() < needed {
+        return Err(Miss::TooFewCentres);
+    }
+    let candidates = consistent(&pts);
+    if candidates.len() < needed {
+        return Err(Miss::TooFewCentres);
+    }
+    let seeds = seeds(&pts, &candidates);
+    if seeds.is_empty() {
+        return Err(Miss::NoLattice);
+    }
+    // The largest lattice grown from the best few seeds.
+    let mut best: Option<HashMap<Cell, usize>> = None;
+    for &(s, a, b) in seeds.iter().take(MAX_SEEDS) {
+        let lattice = grow(&pts, &candidates, s, a, b);
+        if best.as_ref().is_none_or(|l| lattice.len() > l.len()) {
+            let done = lattice.len() >= m_total;
+            best = Some(lattice);
+            if done {
+                break;
+            }
+        }
+    }
+    let lattice = best.unwrap_or_default();
+    if std::env::var("GRID_DEBUG").is_ok() {
+        let mut rr: Vec<(f64, Cell, [f64; 2])> = lattice.iter().map(|(&c, &k)| {
+            let near: Vec<(Cell, usize)> = around(&lattice, c, 2).into_iter().filter(|&(q, _)| q != c).collect();
+            (Affine::fit(&pts, &near).map(|m| dist(m.at(c), pts[k].p) / m.step()).unwrap_or(9.0), c, pts[k].p)
+        }).collect();
+        rr.sort_by(|a, b| b.0.total_cmp(&a.0));
+        let (mmin, mmax) = lattice.keys().fold((i32::MAX, i32::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
+        let (nmin, nmax) = lattice.keys().fold((i32::MAX, i32::MIN), |(a, b), c| (a.min(c.1), b.max(c.1)));
+        eprintln!("lattice m {mmin}..{mmax} n {nmin}..{nmax}; worst {:?}", &rr[..rr.len().min(4)]);
+        for (e, c, p) in &rr { eprintln!("cell {} {} {:.1} {:.1} {:.3} {}", c.0, c.1, p[0], p[1], e, false); }
+    }
+    if lattice.len() < needed {
+        if std::env::var("GRID_DEBUG").is_ok() { eprintln!("toofew: lattice {} candidates {} pts {} seeds {}", lattice.len(), candidates.len(), pts.len(), seeds.len()); }
+        return Err(Miss::TooFewPoints);
+    }
+    let labels = place(&pts, &lattice, pattern)?;
+    // The smoothness check sees only the points placed on the board, not the strays.
+    let kept: std::collections::HashSet<usize> = labels.iter().map(|&(_, k)| k).collect();
+    let lattice: HashMap<Cell, usize> = lattice.into_iter().filter(|(_, k)| kept.contains(k)).collect();
+    check_smooth(&pts, &lattice)?;
+    let mut points: Vec<GridPoint> = labels
+        .iter()
+        .map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r })
+        .collect();
+    points.sort_by_key(|g| g.index);
+    let homography_rms_px = homography_check(&points, pattern)?;
+    Ok(GridDetection { points, homography_rms_px })
+}
+
+/// Indices of the centres whose radius and nearest-neighbour distance agree with the
+/// densest mode of both: the grid's scale.
+fn consistent(pts: &[Pt]) -> Vec<usize> {
+    let nn: Vec<f64> = (0..pts.len())
+        .map(|a| (0..pts.len()).filter(|&b| b != a).map(|b| dist(pts[a].p, pts[b].p)).fold(f64::INFINITY, f64::min))
+        .collect();
+    let feature = |k: usize| (pts[k].r.ln(), nn[k].max(1e-9).ln());
+    // Within 25 % of each other in both: the same circle size and spacing seen at nearly
+    // the same depth.
+    let near = |a: (f64, f64), b: (f64, f64), tol: f64| (a.0 - b.0).abs() < tol && (a.1 - b.1).abs() < tol;
+    let mut mode = None;
+    let mut most = 0;
+    for a in 0..pts.len() {
+        let fa = feature(a);
+        let count = (0..pts.len()).filter(|&b| near(fa, feature(b), 0.22)).count();
+        if count > most {
+            most = count;
+            mode = Some(a);
+        }
+    }
+    let Some(m) = mode else { return Vec::new() };
+    // The mode's centre: median of its members, then everything within a factor ~1.8 (a
+    // tilted board is seen larger at its near side than at its far side).
+    let fm = feature(m);
+    let members: Vec<usize> = (0..pts.len()).filter(|&b| near(fm, feature(b), 0.22)).collect();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let centre = (
+        median(members.iter().map(|&k| feature(k).0).collect()),
+        median(members.iter().map(|&k| feature(k).1).collect()),
+    );
+    (0..pts.len()).filter(|&k| near(centre, feature(k), 0.6)).collect()
+}
+
+/// Seeds for the lattice: centres whose four nearest candidate neighbours form two
+/// opposite pairs of similar length, best first; with each, the two basis steps.
+fn seeds(pts: &[Pt], candidates: &[usize]) -> Vec<(usize, [f64; 2], [f64; 2])> {
+    let mut out = Vec::new();
+    for &s in candidates {
+        let mut near: Vec<(f64, usize)> =
+            candidates.iter().filter(|&&k| k != s).map(|&k| (dist(pts[s].p, pts[k].p), k)).collect();
+        if near.len() < 4 {
+            continue;
+        }
+        near.select_nth_unstable_by(3, |a, b| a.0.total_cmp(&b.0));
+        let mut four: Vec<(f64, usize)> = near[..4].to_vec();
+        four.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let v: Vec<[f64; 2]> =
+            four.iter().map(|&(_, k)| [pts[k].p[0] - pts[s].p[0], pts[k].p[1] - pts[s].p[1]]).collect();
+        let len = |a: [f64; 2]| a[0].hypot(a[1]);
+        // Pair the nearest with its opposite.
+        let Some(opp) = (1..4).min_by(|&x, &y| {
+            len([v[0][0] + v[x][0], v[0][1] + v[x][1]]).total_cmp(&len([v[0][0] + v[y][0], v[0][1] + v[y][1]]))
+        }) else {
+            continue;
+        };
+        let rest: Vec<usize> = (1..4).filter(|&x| x != opp).collect();
+        let (a, a2, b, b2) = (v[0], v[opp], v[rest[0]], v[rest[1]]);
+        let mean = (len(a) + len(a2) + len(b) + len(b2)) / 4.0;
+        let gap = |x: [f64; 2], y: [f64; 2]| len([x[0] + y[0], x[1] + y[1]]);
+        // Opposite steps cancel (to second order under perspective) and the two axes are
+        // neither parallel nor wildly unequal.
+        let cross = (a[0] * b[1] - a[1] * b[0]).abs() / (len(a) * len(b));
+        let ratio = len(a).max(len(b)) / len(a).min(len(b)).max(1e-9);
+        let radii_ok = four.iter().all(|&(_, k)| (pts[k].r / pts[s].r - 1.0).abs() < 0.35);
+        if gap(a, a2) < 0.2 * mean && gap(b, b2) < 0.2 * mean && cross > 0.5 && ratio < 2.0 && radii_ok {
+            let score = (gap(a, a2) + gap(b, b2)) / mean;
+            out.push((score, s, a, b));
+        }
+    }
+    out.sort_by(|x, y| x.0.total_cmp(&y.0));
+    out.into_iter().map(|(_, s, a, b)| (s, a, b)).collect()
+}
+
+/// Grows the lattice from seed `s` with basis steps `a` (cell +1, 0) and `b` (0, +1).
+///
+/// Each free cell next to the lattice (the eight around a placed cell, so that diagonal
+/// steps bridge a missing circle) is predicted by an affine map fitted to the placed cells around it: local, so
+/// perspective and distortion bend it no more than they bend the grid over two spacings.
+/// The cells with the most placed neighbours go first; passes repeat until nothing is added.
+fn grow(pts: &[Pt], candidates: &[usize], s: usize, a: [f64; 2], b: [f64; 2]) -> HashMap<Cell, usize> {
+    let mut at: HashMap<Cell, usize> = HashMap::from([((0, 0), s)]);
+    let mut used: std::collections::HashSet<usize> = std::collections::HashSet::from([s]);
+    let seed_map = Affine { origin: [0.0, 0.0], base: pts[s].p, a, b };
+    loop {
+        let mut frontier: Vec<(usize, Cell)> = Vec::new();
+        let mut seen = std::collections::HashSet::new();
+        for &(m, n) in at.keys() {
+            for dm in -1..=1 {
+                for dn in -1..=1 {
+                    let c = (m + dm, n + dn);
+                    if !at.contains_key(&c) && seen.insert(c) {
+                        let support = around(&at, c, 1).len();
+                        frontier.push((support, c));
+                    }
+                }
+            }
+        }
+        frontier.sort_by_key(|&(support, c)| (std::cmp::Reverse(support), c));
+        let before = at.len();
+        for (_, c) in frontier {
+            let near = around(&at, c, 2);
+            // Too few placed cells around for a fit: step from the nearest with the seed's basis.
+            let map = Affine::fit(pts, &near).or_else(|| {
+                let &(q, k) = near.iter().min_by_key(|&&(q, _)| (q.0 - c.0).abs() + (q.1 - c.1).abs())?;
+                Some(Affine { origin: [f64::from(q.0), f64::from(q.1)], base: pts[k].p, ..seed_map })
+            });
+            let Some(map) = map else { continue };
+            let pred = map.at(c);
+            let step = map.step();
+            let r_ref = near.iter().map(|&(_, k)| pts[k].r).sum::<f64>() / near.len().max(1) as f64;
+            let found = candidates
+                .iter()
+                .copied()
+                .filter(|k| !used.contains(k))
+                .map(|k| (dist(pts[k].p, pred), k))
+                .filter(|&(e, k)| e < 0.25 * step && (pts[k].r / r_ref - 1.0).abs() < 0.3)
+                .min_by(|x, y| x.0.total_cmp(&y.0));
+            if found.is_none() && std::env::var("GRID_DEBUG2").is_ok() {
+                if let Some((e, k)) = candidates.iter().copied().filter(|k| !used.contains(k)).map(|k| (dist(pts[k].p, pred), k)).min_by(|x, y| x.0.total_cmp(&y.0)) {
+                    if e < 0.6 * step { eprintln!("reject cell {c:?} e/step {:.2} r ratio {:.2} support {}", e / step, pts[k].r / r_ref, near.len()); }
+                }
+            }
+            if let Some((_, k)) = found {
+                at.insert(c, k);
+                used.insert(k);
+            }
+        }
+        // A lattice far larger than any pattern is not a grid (a wall of similar discs).
+        if at.len() == before || at.len() > 4 * MAX_PATTERN_SIDE * MAX_PATTERN_SIDE {
+            break;
+        }
+    }
+    at
+}
+
+/// Placed cells within Chebyshev distance `reach` of `c`: `(cell, point)`.
+fn around(at: &HashMap<Cell, usize>, c: Cell, reach: i32) -> Vec<(Cell, usize)> {
+    let mut out = Vec::new();
+    for dm in -reach..=reach {
+        for dn in -reach..=reach {
+            let q = (c.0 + dm, c.1 + dn);
+            if let Some(&k) = at.get(&q) {
+                out.push((q, k));
+            }
+        }
+    }
+    out
+}
+
+/// An affine map from lattice cells to the image: `base + a·(m − origin.m) + b·(n − origin.n)`.
+#[derive(Debug, Clone, Copy)]
+struct Affine {
+    origin: [f64; 2],
+    base: [f64; 2],
+    a: [f64; 2],
+    b: [f64; 2],
+}
+
+impl Affine {
+    /// Least-squares fit to placed cells; `None` when they are fewer than three or in a line.
+    fn fit(pts: &[Pt], cells: &[(Cell, usize)]) -> Option<Self> {
+        if cells.len() < 3 {
+            return None;
+        }
+        let n = cells.len() as f64;
+        let om = cells.iter().map(|&((m, _), _)| f64::from(m)).sum::<f64>() / n;
+        let on = cells.iter().map(|&((_, q), _)| f64::from(q)).sum::<f64>() / n;
+        let base = [
+            cells.iter().map(|&(_, k)| pts[k].p[0]).sum::<f64>() / n,
+            cells.iter().map(|&(_, k)| pts[k].p[1]).sum::<f64>() / n,
+        ];
+        let (mut smm, mut smn, mut snn) = (0.0, 0.0, 0.0);
+        let (mut sum_, mut sun, mut svm, mut svn) = (0.0, 0.0, 0.0, 0.0);
+        for &((m, q), k) in cells {
+            let (x, y) = (f64::from(m) - om, f64::from(q) - on);
+            let (u, v) = (pts[k].p[0] - base[0], pts[k].p[1] - base[1]);
+            smm += x * x;
+            smn += x * y;
+            snn += y * y;
+            sum_ += u * x;
+            sun += u * y;
+            svm += v * x;
+            svn += v * y;
+        }
+        let det = smm * snn - smn * smn;
+        // Collinear cells leave one direction unknown.
+        if det < 0.25 * n * n * 0.1 || det < 1e-9 {
+            return None;
+        }
+        let (i00, i01, i11) = (snn / det, -smn / det, smm / det);
+        let a = [sum_ * i00 + sun * i01, svm * i00 + svn * i01];
+        let b = [sum_ * i01 + sun * i11, svm * i01 + svn * i11];
+        Some(Self { origin: [om, on], base, a, b })
+    }
+
+    fn at(&self, c: Cell) -> [f64; 2] {
+        let (x, y) = (f64::from(c.0) - self.origin[0], f64::from(c.1) - self.origin[1]);
+        [self.base[0] + self.a[0] * x + self.b[0] * y, self.base[1] + self.a[1] * x + self.b[1] * y]
+    }
+
+    /// The shorter of the two cell steps, px.
+    fn step(&self) -> f64 {
+        self.a[0].hypot(self.a[1]).min(self.b[0].hypot(self.b[1]))
+    }
+}
+
+/// The eight ways to lay the lattice's axes: quarter turns, with and without a swap.
+fn symmetry(c: Cell, t: usize) -> Cell {
+    let (m, n) = if t >= 4 { (c.1, c.0) } else { c };
+    match t % 4 {
+        0 => (m, n),
+        1 => (-n, m),
+        2 => (-m, -n),
+        _ => (n, -m),
+    }
+}
+
+/// Most lattice points a placement may leave outside the pattern: strays at the lattice's
+/// edge (marks printed beside the grid, a disc of the background that happens to line up).
+fn max_dropped(_n: usize) -> usize {
+    2
+}
+
+/// Labels the lattice's points with the pattern's indices: `(index, point)` pairs.
+///
+/// Each of the eight axis layouts and every shift is scored by how many lattice points it
+/// puts inside the pattern (on the right parity, with the board's front to the camera).
+/// A placement that holds them all is taken if it is the only one; otherwise the best
+/// placement may leave a few strays outside, but only if no other placement comes close.
+fn place(
+    pts: &[Pt],
+    lattice: &HashMap<Cell, usize>,
+    pattern: &Pattern,
+) -> Result<Vec<(usize, usize)>, Miss> {
+    let (cols, rows2) = (pattern.cols as i64, 2 * pattern.rows as i64);
+    let n = lattice.len();
+    let mut scored: Vec<Vec<(usize, usize)>> = Vec::new();
+    for t in 0..8 {
+        // Board coordinates: i along x, k = 2j + i mod 2 along y; a cell step is a
+        // diagonal step on the board.
+        let ik: Vec<((i64, i64), usize)> = lattice
+            .iter()
+            .map(|(&c, &k)| {
+                let (m, n) = symmetry(c, t);
+                ((i64::from(m) + i64::from(n), i64::from(m) - i64::from(n)), k)
+            })
+            .collect();
+        let (imin, imax) = ik.iter().fold((i64::MAX, i64::MIN), |(lo, hi), ((i, _), _)| (lo.min(*i), hi.max(*i)));
+        let (kmin, kmax) = ik.iter().fold((i64::MAX, i64::MIN), |(lo, hi), ((_, k), _)| (lo.min(*k), hi.max(*k)));
+        // Shifts that keep most points inside: the pattern's box overlaps the lattice's.
+        for di in (imin - cols + 1)..=imax {
+            for dk in (kmin - rows2 + 1)..=kmax {
+                // The two shifts have equal parity, so that k ≡ i (mod 2) holds after them.
+                if (di - dk).rem_euclid(2) != 0 {
+                    continue;
+                }
+                let labels: Vec<(usize, usize)> = ik
+                    .iter()
+                    .filter(|&&((i, k), _)| (0..cols).contains(&(i - di)) && (0..rows2).contains(&(k - dk)))
+                    .map(|&((i, k), p)| {
+                        let (i, k) = ((i - di) as usize, (k - dk) as usize);
+                        (i * pattern.rows + (k - i % 2) / 2, p)
+                    })
+                    .collect();
+                if labels.len() + max_dropped(n) >= n && front_facing(pts, &labels, pattern) {
+                    scored.push(labels);
+                }
+            }
+        }
+    }
+    scored.sort_by_key(|l| std::cmp::Reverse(l.len()));
+    let Some(best) = scored.first().map(Vec::len) else { return Err(Miss::NoPlacement) };
+    // Rivals: placements nearly as good that are not the best's own half turn (even COLS).
+    // A placement that leaves strays out must hold at least two points more than any
+    // other: a rival holds the strays instead of a whole edge line of the grid, so it
+    // wins only with more strays than that line has detected circles.
+    let twin = |a: &[(usize, usize)], b: &[(usize, usize)]| pattern.cols % 2 == 0 && is_half_turn(a, b, pattern);
+    let margin = if best == n { 1 } else { 2 };
+    let rivals: Vec<usize> = (1..scored.len()).filter(|&q| scored[q].len() + margin > best).collect();
+    if std::env::var("GRID_DEBUG").is_ok() { eprintln!("place n {n} counts {:?}", scored.iter().map(Vec::len).take(6).collect::<Vec<_>>()); }
+    match rivals.as_slice() {
+        [] => Ok(scored.swap_remove(0)),
+        [q] if twin(&scored[0], &scored[*q]) => {
+            let x0 = x_axis(pts, &scored[0], pattern);
+            let first = if x0[0].abs() > x0[1].abs() * 1f64.to_radians().tan() { x0[0] > 0.0 } else { x0[1] > 0.0 };
+            Ok(scored.swap_remove(if first { 0 } else { *q }))
+        }
+        _ => Err(Miss::Ambiguous),
+    }
+}
+
+/// Whether two labellings differ by the pattern's half turn: (i, j) ↔ (COLS−1−i, ROWS−1−j).
+fn is_half_turn(a: &[(usize, usize)], b: &[(usize, usize)], pattern: &Pattern) -> bool {
+    let of: HashMap<usize, usize> = b.iter().map(|&(idx, p)| (p, idx)).collect();
+    a.iter().all(|&(idx, p)| {
+        let (i, j) = (idx / pattern.rows, idx % pattern.rows);
+        of.get(&p) == Some(&((pattern.cols - 1 - i) * pattern.rows + (pattern.rows - 1 - j)))
+    })
+}
+
+/// The least-squares affine map from board (x, y) to image: its 2x2 linear part.
+fn affine(pts: &[Pt], labels: &[(usize, usize)], pattern: &Pattern) -> [[f64; 2]; 2] {
+    let n = labels.len() as f64;
+    let obj: Vec<[f64; 3]> = labels.iter().map(|&(idx, _)| pattern.object_point(idx)).collect();
+    let (mx, my) = (obj.iter().map(|o| o[0]).sum::<f64>() / n, obj.iter().map(|o| o[1]).sum::<f64>() / n);
+    let (mu, mv) = (
+        labels.iter().map(|&(_, p)| pts[p].p[0]).sum::<f64>() / n,
+        labels.iter().map(|&(_, p)| pts[p].p[1]).sum::<f64>() / n,
+    );
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    let (mut sux, mut suy, mut svx, mut svy) = (0.0, 0.0, 0.0, 0.0);
+    for (o, &(_, p)) in obj.iter().zip(labels) {
+        let (x, y) = (o[0] - mx, o[1] - my);
+        let (u, v) = (pts[p].p[0] - mu, pts[p].p[1] - mv);
+        sxx += x * x;
+        sxy += x * y;
+        syy += y * y;
+        sux += u * x;
+        suy += u * y;
+        svx += v * x;
+        svy += v * y;
+    }
+    let det = sxx * syy - sxy * sxy;
+    if det.abs() < 1e-30 {
+        return [[0.0; 2]; 2];
+    }
+    // [u] = A [x y]ᵀ: A = [Σux Σuy; Σvx Σvy] · inv([Σxx Σxy; Σxy Σyy]).
+    let inv = [[syy / det, -sxy / det], [-sxy / det, sxx / det]];
+    [
+        [sux * inv[0][0] + suy * inv[1][0], sux * inv[0][1] + suy * inv[1][1]],
+        [svx * inv[0][0] + svy * inv[1][0], svx * inv[0][1] + svy * inv[1][1]],
+    ]
+}
+
+/// The board's front faces the camera: board x and y map to the image without a mirror
+/// (image u right, v down, as the camera's x and y; a mirrored map needs the camera
+/// behind the board).
+fn front_facing(pts: &[Pt], labels: &[(usize, usize)], pattern: &Pattern) -> bool {
+    let a = affine(pts, labels, pattern);
+    a[0][0] * a[1][1] - a[0][1] * a[1][0] > 0.0
+}
+
+/// Image direction of the board's x axis under a labelling.
+fn x_axis(pts: &[Pt], labels: &[(usize, usize)], pattern: &Pattern) -> [f64; 2] {
+    let a = affine(pts, labels, pattern);
+    [a[0][0], a[1][0]]
+}
+
+/// Every lattice line bends smoothly: the second difference of three consecutive points is
+/// small against their spacing. A point labelled one step off breaks this.
+fn check_smooth(pts: &[Pt], lattice: &HashMap<Cell, usize>) -> Result<(), Miss> {
+    for (&(m, n), &k) in lattice {
+        for d in [(1, 0), (0, 1), (1, 1), (1, -1)] {
+            let (Some(&a), Some(&b)) = (lattice.get(&(m - d.0, n - d.1)), lattice.get(&(m + d.0, n + d.1))) else {
+                continue;
+            };
+            let (pa, p, pb) = (pts[a].p, pts[k].p, pts[b].p);
+            let second = (pa[0] - 2.0 * p[0] + pb[0]).hypot(pa[1] - 2.0 * p[1] + pb[1]);
+            if second > 0.15 * dist(pa, pb) / 2.0 + 0.5 {
+                if std::env::var("GRID_DEBUG").is_ok() { eprintln!("smooth: second {second:.2} span {:.2}", dist(pa, pb)); }
+                return Err(Miss::Inconsistent);
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Fits a homography from board to image to the labelled points; the largest residual must
+/// stay well below the local spacing (distortion bends the grid by a few pixels at most; a
+/// wrong label moves a point by a whole spacing). Returns the RMS residual.
+fn homography_check(points: &[GridPoint], pattern: &Pattern) -> Result<f64, Miss> {
+    let obj: Vec<[f64; 2]> = points.iter().map(|g| {
+        let o = pattern.object_point(g.index);
+        [o[0], o[1]]
+    }).collect();
+    let img: Vec<[f64; 2]> = points.iter().map(|g| g.image).collect();
+    let h = crate::calib::fit_homography(&obj, &img).ok_or(Miss::Inconsistent)?;
+    let mut sq = 0.0;
+    let mut worst_rel: f64 = 0.0;
+    for (k, (o, m)) in obj.iter().zip(&img).enumerate() {
+        let w = h[6] * o[0] + h[7] * o[1] + h[8];
+        if w.abs() < 1e-12 {
+            return Err(Miss::Inconsistent);
+        }
+        let (u, v) = ((h[0] * o[0] + h[1] * o[1] + h[2]) / w, (h[3] * o[0] + h[4] * o[1] + h[5]) / w);
+        let e = (u - m[0]).hypot(v - m[1]);
+        sq += e * e;
+        // The local spacing: distance to the nearest other grid point.
+        let spacing = img
+            .iter()
+            .enumerate()
+            .filter(|&(q, _)| q != k)
+            .map(|(_, p)| dist(*p, *m))
+            .fold(f64::INFINITY, f64::min);
+        worst_rel = worst_rel.max(e / spacing);
+    }
+    if std::env::var("GRID_DEBUG").is_ok() && worst_rel >= 0.3 { eprintln!("homography worst_rel {worst_rel:.2}"); }
+    if worst_rel.is_nan() || worst_rel >= 0.3 {
+        return Err(Miss::Inconsistent);
+    }
+    Ok((sq / points.len() as f64).sqrt())
+}

@@ -63,14 +63,38 @@ impl Selection {
     }
 }
 
-/// RMS distance between the points of two views of the same board points, or `None` when
-/// they are views of different points.
+/// RMS distance between the points two views share (board points in the same order, as
+/// the grid finder lists them), or `None` when they share less than half their points.
 fn change(a: &View, b: &View) -> Option<f64> {
-    if a.object != b.object || a.image.len() != b.image.len() || a.image.is_empty() {
-        return None;
+    let key = |p: &[f64; 3]| (p[0], p[1]);
+    let sorted = |v: &View| v.object.windows(2).all(|w| key(&w[0]) < key(&w[1]));
+    if !sorted(a) || !sorted(b) {
+        return (a.object == b.object && !a.image.is_empty()).then(|| rms_apart(a.image.iter().zip(&b.image)));
     }
-    let sq: f64 = a.image.iter().zip(&b.image).map(|(p, q)| (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sum();
-    Some((sq / a.image.len() as f64).sqrt())
+    let (mut i, mut j) = (0, 0);
+    let mut pairs = Vec::with_capacity(a.image.len().min(b.image.len()));
+    while i < a.object.len().min(a.image.len()) && j < b.object.len().min(b.image.len()) {
+        match key(&a.object[i]).partial_cmp(&key(&b.object[j])) {
+            Some(std::cmp::Ordering::Less) => i += 1,
+            Some(std::cmp::Ordering::Greater) => j += 1,
+            _ => {
+                pairs.push((&a.image[i], &b.image[j]));
+                i += 1;
+                j += 1;
+            }
+        }
+    }
+    let most = a.image.len().max(b.image.len());
+    (pairs.len() >= 4 && 2 * pairs.len() >= most).then(|| rms_apart(pairs.into_iter()))
+}
+
+fn rms_apart<'a>(pairs: impl Iterator<Item = (&'a [f64; 2], &'a [f64; 2])>) -> f64 {
+    let (mut sq, mut n) = (0.0, 0usize);
+    for (p, q) in pairs {
+        sq += (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2);
+        n += 1;
+    }
+    (sq / n.max(1) as f64).sqrt()
 }
 
 /// Chooses well-spread views: in order, a view is kept unless its points are within
@@ -279,9 +303,17 @@ mod test {
     #[test]
     fn views_of_other_points_are_never_duplicates() {
         let mut views = synthetic_views(&truth(), 2, 0.0, 1);
+        // The same pixels, but paired with other board points.
         views[1] = views[0].clone();
-        views[1].object[0][0] += 0.001;
+        views[1].object.iter_mut().for_each(|p| p[1] += 0.001);
         assert_eq!(select_views(&views, &SelectOptions::default()).chosen, vec![0, 1]);
+        // A partial view sharing most points of a kept one is a duplicate; one sharing few
+        // is not.
+        let mut views = synthetic_views(&truth(), 1, 0.0, 1);
+        let most = View { object: views[0].object[4..].to_vec(), image: views[0].image[4..].to_vec() };
+        let few = View { object: views[0].object[30..].to_vec(), image: views[0].image[30..].to_vec() };
+        views.extend([most, few]);
+        assert_eq!(select_views(&views, &SelectOptions::default()).chosen, vec![0, 2]);
         assert_eq!(select_views(&[], &SelectOptions::default()).chosen, Vec::<usize>::new());
     }
 

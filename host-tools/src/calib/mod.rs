@@ -410,6 +410,20 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     })
 }
 
+/// The homography from board points (x, y; metres) to pixels that fits them best
+/// (normalised DLT), row by row; `None` for fewer than four points or a degenerate set.
+pub fn fit_homography(object: &[[f64; 2]], image: &[[f64; 2]]) -> Option<[f64; 9]> {
+    let object: Vec<[f64; 3]> = object.iter().map(|o| [o[0], o[1], 0.0]).collect();
+    let h = init::homography(&object, image)?;
+    let mut out = [0.0; 9];
+    for r in 0..3 {
+        for c in 0..3 {
+            out[3 * r + c] = h[(r, c)];
+        }
+    }
+    out.iter().all(|x| x.is_finite()).then_some(out)
+}
+
 /// Reprojection error (px) of each point of a view.
 fn residuals(view: &View, k: &Intrinsics, pose: &Pose) -> Vec<f64> {
     view.object
