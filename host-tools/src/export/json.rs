@@ -215,7 +215,9 @@ mod test {
         let text = serde_json::to_string_pretty(&json).unwrap();
         let keys = top_keys(&text);
         assert_eq!(keys[..KEYS.len()], KEYS, "{text}");
-        for extra in ["std_dev", "rejected", "warnings", "image_width", "image_height", "median_view_px", "mean_view_px"] {
+        for extra in
+            ["std_dev", "rejected", "warnings", "image_width", "image_height", "median_view_px", "mean_view_px"]
+        {
             assert!(keys[KEYS.len()..].iter().any(|k| k == extra), "{extra} missing: {keys:?}");
         }
 
@@ -265,7 +267,8 @@ mod test {
         }
         let cal = calibrate(&views, [346, 260], &Options::default()).unwrap();
         assert_eq!(cal.rejected.len(), 3);
-        let origins: Vec<ViewOrigin> = (0..views.len()).map(|i| ViewOrigin { window_seq: 100 + i as u64, t_s: i as f64 }).collect();
+        let origins: Vec<ViewOrigin> =
+            (0..views.len()).map(|i| ViewOrigin { window_seq: 100 + i as u64, t_s: i as f64 }).collect();
         let json = result_json(&cal, &origins, RunCounts::default()).unwrap();
         assert_eq!(json.rejected.iter().map(|r| r.window_seq).collect::<Vec<_>>(), [Some(100), Some(103), Some(106)]);
         assert!(json.rejected.iter().all(|r| r.reason.contains("points")), "{:?}", json.rejected);

@@ -29,9 +29,7 @@ mod yaml;
 
 pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
 pub use report::{write_report, REPORT_SIZE};
-pub use yaml::{
-    camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX,
-};
+pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX};
 
 use crate::calib::{Calibration, Intrinsics, View, ViewResult};
 use anyhow::{bail, Context, Result};
@@ -149,12 +147,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
 
     let path = |name: &str| dir.join(name);
     let mut written = Written { paths: Vec::with_capacity(FILE_NAMES.len()), warnings };
-    let texts = [
-        json,
-        opencv_yaml(cal, export.calibration_time),
-        camera_info_yaml(cal, export.camera_name),
-        kalibr,
-    ];
+    let texts = [json, opencv_yaml(cal, export.calibration_time), camera_info_yaml(cal, export.camera_name), kalibr];
     for (name, text) in FILE_NAMES.iter().zip(texts) {
         let p = path(name);
         std::fs::write(&p, text).with_context(|| format!("{}: cannot write", p.display()))?;
@@ -211,8 +204,9 @@ pub(crate) mod testdata {
         let views = synthetic_views(truth, 14, 0.15, 11);
         let cal = calibrate(&views, [346, 260], &Options { fix_k3, ..Options::default() }).expect("calibration");
         // One view every fourth window, 10 ms apart, as a recording's detections would give.
-        let origins: Vec<ViewOrigin> =
-            (0..views.len()).map(|i| ViewOrigin { window_seq: 4 * i as u64 + 2, t_s: (4 * i + 2) as f64 * 0.01 }).collect();
+        let origins: Vec<ViewOrigin> = (0..views.len())
+            .map(|i| ViewOrigin { window_seq: 4 * i as u64 + 2, t_s: (4 * i + 2) as f64 * 0.01 })
+            .collect();
         let timeline = (0..4 * views.len())
             .map(|w| WindowSample { t_s: w as f64 * 0.01, centres: 30 + (w * 7) % 15, grid_found: w % 4 == 2 })
             .collect();
@@ -245,7 +239,10 @@ mod test {
         let (views, cal, origins, timeline) = setup(&TRUTH, false);
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("new/sub");
-        let export = Export { calibration_time: Some("Sat Nov 23 07:00:00 2024"), ..Export::new(&cal, &views, &origins, &timeline) };
+        let export = Export {
+            calibration_time: Some("Sat Nov 23 07:00:00 2024"),
+            ..Export::new(&cal, &views, &origins, &timeline)
+        };
         let written = write_all(&out, &export).unwrap();
         let want: Vec<PathBuf> = FILE_NAMES.iter().map(|n| out.join(n)).collect();
         assert_eq!(written.paths, want);
@@ -274,7 +271,8 @@ mod test {
         let e = format!("{:#}", write_all(&out, &Export::new(&cal, &views, &origins, &timeline)).unwrap_err());
         assert!(e.contains("camera_info.yaml"), "{e}");
         // Origins missing for the views used.
-        let e = format!("{:#}", write_all(dir.path(), &Export::new(&cal, &views, &origins[..3], &timeline)).unwrap_err());
+        let e =
+            format!("{:#}", write_all(dir.path(), &Export::new(&cal, &views, &origins[..3], &timeline)).unwrap_err());
         assert!(e.contains("origin"), "{e}");
     }
 }

@@ -33,7 +33,20 @@ const RED: RGBColor = RGBColor(214, 39, 40);
 const GREY: RGBColor = RGBColor(150, 150, 150);
 const DARK: RGBColor = RGBColor(40, 40, 40);
 
+/// Tick labels and axis names.
+const LABELS: (&str, u32) = (FAMILY, 15);
+const DESCS: (&str, u32) = (FAMILY, 16);
+
 type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// Tick label of a count or an index: whole numbers only (ticks between them stay bare).
+fn whole(v: &f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{v:.0}")
+    } else {
+        String::new()
+    }
+}
 
 fn font_ready() -> Result<()> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
@@ -55,7 +68,8 @@ pub fn write_report(
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
 ) -> Result<()> {
-    let png = render(cal, views, origins, timeline).with_context(|| format!("{}: cannot draw the report", path.display()))?;
+    let png =
+        render(cal, views, origins, timeline).with_context(|| format!("{}: cannot draw the report", path.display()))?;
     std::fs::write(path, png).with_context(|| format!("{}: cannot write", path.display()))
 }
 
@@ -91,6 +105,8 @@ fn draw(
     timeline: &[WindowSample],
 ) -> DrawResult {
     root.fill(&WHITE)?;
+    // Room above the title, which plotters sets almost against the edge.
+    let root = root.margin(10, 0, 0, 0);
     let k = &cal.intrinsics;
     let points: usize = cal.views.iter().map(|v| v.points).sum();
     let title = format!(
@@ -138,7 +154,15 @@ fn per_view_panel(area: &Area<'_>, cal: &Calibration, n_views: usize) -> DrawRes
         .x_label_area_size(45)
         .y_label_area_size(65)
         .build_cartesian_2d(-0.5..n as f64 - 0.5, y0..y1)?;
-    chart.configure_mesh().disable_x_mesh().x_desc("view").y_desc("RMS (px)").draw()?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .x_label_formatter(&whole)
+        .x_desc("view")
+        .y_desc("RMS (px)")
+        .draw()?;
     // Half a view wide, or a pixel-wide sliver when there are hundreds.
     let half = 0.4;
     // Bars far above the median stand out in orange.
@@ -155,7 +179,10 @@ fn per_view_panel(area: &Area<'_>, cal: &Calibration, n_views: usize) -> DrawRes
     }))?;
     if cal.median_view_px.is_finite() {
         let m = cal.median_view_px;
-        chart.draw_series(std::iter::once(PathElement::new(vec![(-0.5, m), (n as f64 - 0.5, m)], RED.stroke_width(2))))?;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(-0.5, m), (n as f64 - 0.5, m)],
+            RED.stroke_width(2),
+        )))?;
     }
     Ok(())
 }
@@ -179,7 +206,8 @@ fn equal_aspect_margins(area: &Area<'_>, label_w: u32, label_h: u32, want: f64) 
 /// Every point's residual with the overall RMS as a circle; the axes span most points and
 /// say how many fall outside.
 fn scatter_panel(area: &Area<'_>, cal: &Calibration, res: &[Vec<[f64; 2]>]) -> DrawResult {
-    let mut all: Vec<[f64; 2]> = res.iter().flatten().copied().filter(|d| d[0].is_finite() && d[1].is_finite()).collect();
+    let mut all: Vec<[f64; 2]> =
+        res.iter().flatten().copied().filter(|d| d[0].is_finite() && d[1].is_finite()).collect();
     // The 99.5th percentile of |dx|, |dy| sets the scale, so that a few wild points do
     // not shrink the cloud to a dot.
     let mut mags: Vec<f64> = all.iter().flat_map(|d| [d[0].abs(), d[1].abs()]).collect();
@@ -205,9 +233,12 @@ fn scatter_panel(area: &Area<'_>, cal: &Calibration, res: &[Vec<[f64; 2]>]) -> D
         .x_label_area_size(45)
         .y_label_area_size(65)
         .build_cartesian_2d(-r..r, -r..r)?;
-    chart.configure_mesh().x_desc("dx (px)").y_desc("dy (px)").draw()?;
+    chart.configure_mesh().label_style(LABELS).axis_desc_style(DESCS).x_desc("dx (px)").y_desc("dy (px)").draw()?;
     let axis = GREY.stroke_width(1);
-    chart.draw_series([PathElement::new(vec![(-r, 0.0), (r, 0.0)], axis), PathElement::new(vec![(0.0, -r), (0.0, r)], axis)])?;
+    chart.draw_series([
+        PathElement::new(vec![(-r, 0.0), (r, 0.0)], axis),
+        PathElement::new(vec![(0.0, -r), (0.0, r)], axis),
+    ])?;
     // Faint dots, so that where they pile up shows.
     let style = BLUE.mix(0.35).filled();
     chart.draw_series(all.iter().map(|d| Circle::new((d[0], d[1]), 2, style)))?;
@@ -230,7 +261,7 @@ fn cell(p: [f64; 2], size: [u32; 2]) -> Option<(usize, usize)> {
     // Pixel centres are at integers: the sensor spans [-0.5, w - 0.5].
     let (u, v) = ((p[0] + 0.5) / w, (p[1] + 0.5) / h);
     ((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v))
-        .then(|| ((u * CELLS.0 as f64) as usize, (v * CELLS.1 as f64) as usize))
+        .then_some(((u * CELLS.0 as f64) as usize, (v * CELLS.1 as f64) as usize))
 }
 
 /// The sensor (rows downwards, as in the image) with every detected point: used views' in
@@ -253,7 +284,8 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
     }
     let covered = counts.iter().flatten().filter(|&&n| n > 0).count();
     let most = counts.iter().flatten().copied().max().unwrap_or(0).max(1);
-    let caption = format!("Sensor coverage: {covered} of {} cells ({}×{}) hold points", CELLS.0 * CELLS.1, CELLS.0, CELLS.1);
+    let caption =
+        format!("Sensor coverage: {covered} of {} cells ({}×{}) hold points", CELLS.0 * CELLS.1, CELLS.0, CELLS.1);
     let titled = area.titled(&caption, (FAMILY, 20))?;
     let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
     let mut chart = ChartBuilder::on(&titled)
@@ -266,7 +298,16 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
         .y_label_area_size(65)
         // Rows grow downwards, as in the image.
         .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
-    chart.configure_mesh().disable_mesh().x_desc("column (px)").y_desc("row (px)").draw()?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .x_label_formatter(&whole)
+        .y_label_formatter(&whole)
+        .x_desc("column (px)")
+        .y_desc("row (px)")
+        .draw()?;
     let (cw, ch) = (w / CELLS.0 as f64, h / CELLS.1 as f64);
     let mut cells = Vec::new();
     for (r, row) in counts.iter().enumerate() {
@@ -283,7 +324,10 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
     for (i, view) in views.iter().enumerate() {
         let colour = if used[i] { BLUE } else { RED };
         chart.draw_series(
-            view.image.iter().filter(|p| p[0].is_finite() && p[1].is_finite()).map(|p| Circle::new((p[0], p[1]), 2, colour.filled())),
+            view.image
+                .iter()
+                .filter(|p| p[0].is_finite() && p[1].is_finite())
+                .map(|p| Circle::new((p[0], p[1]), 2, colour.filled())),
         )?;
     }
     chart.draw_series(std::iter::once(Rectangle::new([(-0.5, -0.5), (w - 0.5, h - 0.5)], DARK.stroke_width(2))))?;
@@ -295,25 +339,37 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
 fn timeline_panel(area: &Area<'_>, cal: &Calibration, origins: &[ViewOrigin], timeline: &[WindowSample]) -> DrawResult {
     let ok: Vec<&WindowSample> = timeline.iter().filter(|s| s.t_s.is_finite()).collect();
     let found = ok.iter().filter(|s| s.grid_found).count();
-    let used_t: Vec<f64> = cal.views.iter().filter_map(|v| origins.get(v.view)).map(|o| o.t_s).filter(|t| t.is_finite()).collect();
+    let used_t: Vec<f64> =
+        cal.views.iter().filter_map(|v| origins.get(v.view)).map(|o| o.t_s).filter(|t| t.is_finite()).collect();
     let ts = ok.iter().map(|s| s.t_s).chain(used_t.iter().copied());
     let (lo, hi) = ts.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
     let (t0, t1) = if lo.is_finite() { span(lo, hi) } else { (0.0, 1.0) };
     let pad = (t1 - t0) * 0.02;
     let top = ok.iter().map(|s| s.centres).max().unwrap_or(0).max(1) as f64 * 1.15;
-    let caption =
-        format!("Detections over time: grid found in {found} of {} windows (ticks: views used)", ok.len());
+    let caption = format!("Detections over time: grid found in {found} of {} windows (ticks: views used)", ok.len());
     let mut chart = ChartBuilder::on(area)
         .caption(caption, (FAMILY, 20))
         .margin(12)
         .x_label_area_size(45)
         .y_label_area_size(65)
         .build_cartesian_2d(t0 - pad..t1 + pad, 0.0..top)?;
-    chart.configure_mesh().x_desc("time (s)").y_desc("circle centres in window").draw()?;
-    chart.draw_series(ok.iter().filter(|s| !s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 2, GREY.filled())))?;
-    chart.draw_series(ok.iter().filter(|s| s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 3, GREEN.filled())))?;
+    chart
+        .configure_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .y_label_formatter(&whole)
+        .x_desc("time (s)")
+        .y_desc("circle centres in window")
+        .draw()?;
+    chart.draw_series(
+        ok.iter().filter(|s| !s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 2, GREY.filled())),
+    )?;
+    chart.draw_series(
+        ok.iter().filter(|s| s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 3, GREEN.filled())),
+    )?;
     let tick = top * 0.05;
-    chart.draw_series(used_t.iter().map(|&t| PathElement::new(vec![(t, top), (t, top - tick)], BLUE.stroke_width(2))))?;
+    chart
+        .draw_series(used_t.iter().map(|&t| PathElement::new(vec![(t, top), (t, top - tick)], BLUE.stroke_width(2))))?;
     Ok(())
 }
 
@@ -374,7 +430,10 @@ mod test {
         write_report(&path, &cal, &views, &[], &[]).unwrap();
         assert_eq!((decode(&std::fs::read(&path).unwrap()).0), REPORT_SIZE.0);
         // One window only; non-finite times are left out.
-        let one = [WindowSample { t_s: 1.0, centres: 0, grid_found: false }, WindowSample { t_s: f64::NAN, centres: 3, grid_found: true }];
+        let one = [
+            WindowSample { t_s: 1.0, centres: 0, grid_found: false },
+            WindowSample { t_s: f64::NAN, centres: 3, grid_found: true },
+        ];
         write_report(&path, &cal, &views, &[], &one).unwrap();
         // A directory that does not exist: an error naming the file, nothing written.
         let bad = dir.path().join("missing/report.png");

@@ -254,7 +254,10 @@ mod test {
         let (_, cal, _, _) = setup(&TRUTH, false);
         let k = cal.intrinsics;
         let cv = opencv_yaml(&cal, Some("Sat Nov 23 07:00:00 2024"));
-        assert!(cv.starts_with("%YAML:1.0\n---\ncalibration_time: \"Sat Nov 23 07:00:00 2024\"\nimage_width: 346\n"), "{cv}");
+        assert!(
+            cv.starts_with("%YAML:1.0\n---\ncalibration_time: \"Sat Nov 23 07:00:00 2024\"\nimage_width: 346\n"),
+            "{cv}"
+        );
         assert!(cv.contains("camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"), "{cv}");
         assert_eq!(data_after(&cv, "camera_matrix"), camera_matrix(&k));
         assert_eq!(data_after(&cv, "distortion_coefficients"), k.distortion());
@@ -266,7 +269,10 @@ mod test {
         assert_eq!(data_after(&ros, "camera_matrix"), camera_matrix(&k));
         assert_eq!(data_after(&ros, "distortion_coefficients"), k.distortion());
         assert_eq!(data_after(&ros, "rectification_matrix"), [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
-        assert_eq!(data_after(&ros, "projection_matrix"), [k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]);
+        assert_eq!(
+            data_after(&ros, "projection_matrix"),
+            [k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+        );
 
         let (kalibr, _) = kalibr_camchain_yaml(&cal, "/dvs/events");
         assert!(kalibr.starts_with("cam0:\n  camera_model: pinhole\n"), "{kalibr}");
@@ -307,7 +313,11 @@ mod test {
         assert!(d > K3_NEGLIGIBLE_PX, "{d}");
         let (_, w) = kalibr_camchain_yaml(&cal, "/dvs/events");
         assert_eq!(w.len(), 1, "{w:?}");
-        assert!(w[0].contains("--fix-k3") && w[0].contains("radtan") && w[0].contains(&format!("{d:.3} px")), "{}", w[0]);
+        assert!(
+            w[0].contains("--fix-k3") && w[0].contains("radtan") && w[0].contains(&format!("{d:.3} px")),
+            "{}",
+            w[0]
+        );
         // k3 fixed at 0: nothing to say.
         let (_, cal, _, _) = setup(&strong, true);
         assert_eq!(cal.intrinsics.k3, 0.0);
@@ -332,10 +342,17 @@ mod test {
                  run `bash scripts/setup.sh` (or set EVCAL_SKIP_PYTHON=1 to skip). python3 said: {}",
                 String::from_utf8_lossy(&o.stderr).trim()
             ),
-            Err(e) => panic!("cannot run python3 ({e}): run `bash scripts/setup.sh` (or set EVCAL_SKIP_PYTHON=1 to skip)"),
+            Err(e) => {
+                panic!("cannot run python3 ({e}): run `bash scripts/setup.sh` (or set EVCAL_SKIP_PYTHON=1 to skip)")
+            }
         }
         let out = Command::new("python3").arg("-c").arg(script).arg(file).output().expect("python3 runs");
-        assert!(out.status.success(), "python3 failed on {}:\n{}", file.display(), String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "python3 failed on {}:\n{}",
+            file.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
         Some(String::from_utf8(out.stdout).expect("UTF-8"))
     }
 
