@@ -36,7 +36,10 @@ fi
 # uses it), at the versions that wrote the committed fixtures. pip also fetches faery's test
 # recordings (scripts/fetch-faery.sh).
 writers=(dv-processing==2.0.4 rosbags==0.11.9 h5py==3.16.0 hdf5plugin==7.1.0)
-if ! python3 - "${writers[@]}" >/dev/null 2>&1 <<'PY'
+# Independent readers of the calibration exports (host-tools/src/export tests): OpenCV's
+# cv::FileStorage and PyYAML (as Kalibr reads a camchain).
+readers=(opencv-python-headless==4.12.0.88 PyYAML==6.0.3)
+if ! python3 - "${writers[@]}" "${readers[@]}" >/dev/null 2>&1 <<'PY'
 import importlib.metadata as m, sys
 for w in sys.argv[1:]:
     name, version = w.split("==")
@@ -44,8 +47,8 @@ for w in sys.argv[1:]:
         sys.exit(1)
 PY
 then
-  echo "setup: installing Python packages: ${writers[*]} numpy"
-  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" numpy
+  echo "setup: installing Python packages: ${writers[*]} ${readers[*]} numpy"
+  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" "${readers[@]}" numpy
 fi
 
 # The core and the firmware build for the Cortex-M4F.

@@ -4,6 +4,7 @@
 pub mod calib;
 pub mod detections;
 pub mod eval;
+pub mod export;
 pub mod grid;
 pub mod link;
 pub mod recording;

@@ -1,0 +1,279 @@
+//! The JSON result other programs read.
+//!
+//! Top-level keys, in this order, whose names do not change:
+//! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
+//! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
+//! rejected down_weighted_points warnings iterations converged`.
+
+use super::{RunCounts, ViewOrigin};
+use crate::calib::{Calibration, Intrinsics};
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+
+/// The JSON result (serialise it with `serde_json`; the field order is the key order).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResultJson {
+    /// Focal length along x, px.
+    pub fx: f64,
+    /// Focal length along y, px.
+    pub fy: f64,
+    /// Principal point x, px.
+    pub cx: f64,
+    /// Principal point y, px.
+    pub cy: f64,
+    /// Radial distortion, r².
+    pub k1: f64,
+    /// Radial distortion, r⁴.
+    pub k2: f64,
+    /// Tangential distortion.
+    pub p1: f64,
+    /// Tangential distortion.
+    pub p2: f64,
+    /// Radial distortion, r⁶.
+    pub k3: f64,
+    /// RMS reprojection error over every point of the views used, px.
+    pub rms_px: f64,
+    /// Views the calibration used.
+    pub views_used: usize,
+    /// Detection windows looked at.
+    pub windows: u64,
+    /// Windows in which the grid was found.
+    pub detections: u64,
+    /// Every view used, in the solver's order.
+    pub per_view: Vec<PerViewJson>,
+    /// Image width, px.
+    pub image_width: u32,
+    /// Image height, px.
+    pub image_height: u32,
+    /// Mean of the views' RMS errors, px.
+    pub mean_view_px: f64,
+    /// Median of the views' RMS errors, px.
+    pub median_view_px: f64,
+    /// One standard deviation of each parameter (0 for a fixed one).
+    pub std_dev: Intrinsics,
+    /// Views set aside, and why.
+    pub rejected: Vec<RejectedJson>,
+    /// Points down-weighted by the robust loss to below half weight.
+    pub down_weighted_points: usize,
+    /// The solver's warnings, then the exports'.
+    pub warnings: Vec<String>,
+    /// Levenberg–Marquardt steps of the final solve.
+    pub iterations: usize,
+    /// Whether the final solve converged.
+    pub converged: bool,
+}
+
+/// One used view in the JSON result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PerViewJson {
+    /// Index of the view among those given to the solver.
+    pub view: usize,
+    /// Sequence number of the window the view comes from.
+    pub window_seq: u64,
+    /// The window's time, s.
+    pub t: f64,
+    /// Points of the view.
+    pub points: usize,
+    /// RMS reprojection error of its points, px.
+    pub rms_px: f64,
+    /// Board → camera rotation (Rodrigues vector, OpenCV's rvec).
+    pub rvec: [f64; 3],
+    /// Board → camera translation (OpenCV's tvec), metres.
+    pub tvec: [f64; 3],
+}
+
+/// A view set aside, in the JSON result.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RejectedJson {
+    /// Index of the view among those given to the solver.
+    pub view: usize,
+    /// Sequence number of the window the view comes from.
+    pub window_seq: Option<u64>,
+    /// Why, in words.
+    pub reason: String,
+}
+
+/// The JSON result of `cal`: `origins` say where each input view came from (indexed like the
+/// views given to the solver), `counts` how much of the recording was looked at. An error
+/// when a view the calibration used has no origin.
+pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts) -> Result<ResultJson> {
+    let k = &cal.intrinsics;
+    let mut per_view = Vec::with_capacity(cal.views.len());
+    for v in &cal.views {
+        let Some(o) = origins.get(v.view) else {
+            bail!("view {} was used but has no origin (window): {} origins were given", v.view, origins.len());
+        };
+        per_view.push(PerViewJson {
+            view: v.view,
+            window_seq: o.window_seq,
+            t: o.t_s,
+            points: v.points,
+            rms_px: v.rms_px,
+            rvec: v.rvec,
+            tvec: v.tvec,
+        });
+    }
+    let rejected = cal
+        .rejected
+        .iter()
+        .map(|r| RejectedJson {
+            view: r.view,
+            window_seq: origins.get(r.view).map(|o| o.window_seq),
+            reason: r.reason.clone(),
+        })
+        .collect();
+    Ok(ResultJson {
+        fx: k.fx,
+        fy: k.fy,
+        cx: k.cx,
+        cy: k.cy,
+        k1: k.k1,
+        k2: k.k2,
+        p1: k.p1,
+        p2: k.p2,
+        k3: k.k3,
+        rms_px: cal.rms_px,
+        views_used: cal.views.len(),
+        windows: counts.windows,
+        detections: counts.detections,
+        per_view,
+        image_width: cal.image_size[0],
+        image_height: cal.image_size[1],
+        mean_view_px: cal.mean_view_px,
+        median_view_px: cal.median_view_px,
+        std_dev: Intrinsics::from_array(cal.std_dev),
+        rejected,
+        down_weighted_points: cal.down_weighted_points,
+        warnings: cal.warnings.clone(),
+        iterations: cal.iterations,
+        converged: cal.converged,
+    })
+}
+
+#[cfg(test)]
+mod test {
+    use super::super::testdata::*;
+    use super::*;
+    use crate::calib::{calibrate, synthetic_views, Options};
+
+    /// The keys other programs read, in order.
+    const KEYS: [&str; 14] = [
+        "fx",
+        "fy",
+        "cx",
+        "cy",
+        "k1",
+        "k2",
+        "p1",
+        "p2",
+        "k3",
+        "rms_px",
+        "views_used",
+        "windows",
+        "detections",
+        "per_view",
+    ];
+
+    /// The top-level keys of a JSON object in the order written, read off the text (a
+    /// `serde_json::Value` sorts them).
+    fn top_keys(text: &str) -> Vec<String> {
+        let mut keys = Vec::new();
+        let (mut depth, mut in_str, mut escaped, mut start) = (0, false, false, 0);
+        for (i, c) in text.char_indices() {
+            if in_str {
+                match c {
+                    _ if escaped => escaped = false,
+                    '\\' => escaped = true,
+                    '"' => {
+                        in_str = false;
+                        if depth == 1 && text[i + 1..].trim_start().starts_with(':') {
+                            keys.push(text[start..i].to_string());
+                        }
+                    }
+                    _ => {}
+                }
+                continue;
+            }
+            match c {
+                '"' => {
+                    in_str = true;
+                    start = i + 1;
+                }
+                '{' | '[' => depth += 1,
+                '}' | ']' => depth -= 1,
+                _ => {}
+            }
+        }
+        keys
+    }
+
+    #[test]
+    fn keys_and_round_trip() {
+        let (views, cal, origins, _) = setup(&TRUTH, false);
+        let counts = RunCounts { windows: 4 * views.len() as u64, detections: views.len() as u64 };
+        let json = result_json(&cal, &origins, counts).unwrap();
+        let text = serde_json::to_string_pretty(&json).unwrap();
+        let keys = top_keys(&text);
+        assert_eq!(keys[..KEYS.len()], KEYS, "{text}");
+        for extra in
+            ["std_dev", "rejected", "warnings", "image_width", "image_height", "median_view_px", "mean_view_px"]
+        {
+            assert!(keys[KEYS.len()..].iter().any(|k| k == extra), "{extra} missing: {keys:?}");
+        }
+
+        // Read back with the generic parser, as another program would.
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-15 * b.abs();
+        let k = cal.intrinsics;
+        for (name, want) in ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3"].iter().zip(k.to_array()) {
+            // serde_json parses floats to within an ulp unless its float_roundtrip feature is on.
+            assert!(close(v[name].as_f64().unwrap(), want), "{name}");
+        }
+        assert!(close(v["rms_px"].as_f64().unwrap(), cal.rms_px));
+        assert_eq!(v["views_used"], cal.views.len());
+        assert_eq!(v["windows"], counts.windows);
+        assert_eq!(v["detections"], counts.detections);
+        assert_eq!(v["image_width"], 346);
+        assert_eq!(v["std_dev"]["fx"].as_f64().map(|x| close(x, cal.std_dev[0])), Some(true));
+        let per_view = v["per_view"].as_array().unwrap();
+        assert_eq!(per_view.len(), cal.views.len());
+        for (p, r) in per_view.iter().zip(&cal.views) {
+            let keys: Vec<&str> = p.as_object().unwrap().keys().map(String::as_str).collect();
+            for key in ["view", "window_seq", "t", "points", "rms_px", "rvec", "tvec"] {
+                assert!(keys.contains(&key), "{key} missing: {p}");
+            }
+            assert_eq!(p["view"], r.view);
+            assert_eq!(p["window_seq"], origins[r.view].window_seq);
+            assert!(close(p["t"].as_f64().unwrap(), origins[r.view].t_s));
+            assert_eq!(p["points"], r.points);
+            assert!(close(p["tvec"][2].as_f64().unwrap(), r.tvec[2]));
+        }
+
+        // And into the struct again.
+        let back: ResultJson = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.per_view.len(), json.per_view.len());
+        assert_eq!(back.views_used, json.views_used);
+        assert_eq!(back.rejected, json.rejected);
+        assert_eq!(back.warnings, json.warnings);
+    }
+
+    #[test]
+    fn rejected_views_keep_their_reason_and_window() {
+        // Three views with too few points: set aside, the others calibrate.
+        let mut views = synthetic_views(&TRUTH, 8, 0.1, 3);
+        for v in views.iter_mut().step_by(3) {
+            v.object.truncate(4);
+            v.image.truncate(4);
+        }
+        let cal = calibrate(&views, [346, 260], &Options::default()).unwrap();
+        assert_eq!(cal.rejected.len(), 3);
+        let origins: Vec<ViewOrigin> =
+            (0..views.len()).map(|i| ViewOrigin { window_seq: 100 + i as u64, t_s: i as f64 }).collect();
+        let json = result_json(&cal, &origins, RunCounts::default()).unwrap();
+        assert_eq!(json.rejected.iter().map(|r| r.window_seq).collect::<Vec<_>>(), [Some(100), Some(103), Some(106)]);
+        assert!(json.rejected.iter().all(|r| r.reason.contains("points")), "{:?}", json.rejected);
+        // A used view without an origin is an error naming it.
+        let e = result_json(&cal, &origins[..1], RunCounts::default()).unwrap_err().to_string();
+        assert!(e.contains("view 1 was used but has no origin"), "{e}");
+    }
+}

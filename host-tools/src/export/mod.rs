@@ -1,0 +1,278 @@
+//! What a calibration leaves behind for the user's own stack: OpenCV's `cv::FileStorage`
+//! YAML, ROS's `camera_info` YAML, a Kalibr camchain, a JSON result for programs, and a PNG
+//! report for people.
+//!
+//! ```no_run
+//! use evcal_host::calib::{calibrate, Options, View};
+//! use evcal_host::export::{write_all, Export, RunCounts, ViewOrigin, WindowSample};
+//! # fn run(views: Vec<View>, origins: Vec<ViewOrigin>, timeline: Vec<WindowSample>) -> anyhow::Result<()> {
+//! let cal = calibrate(&views, [346, 260], &Options::default())?;
+//! let export = Export {
+//!     counts: RunCounts { windows: timeline.len() as u64, detections: 120 },
+//!     ..Export::new(&cal, &views, &origins, &timeline)
+//! };
+//! let written = write_all(std::path::Path::new("calibration-out"), &export)?;
+//! for w in &written.warnings {
+//!     eprintln!("warning: {w}");
+//! }
+//! # Ok(()) }
+//! ```
+//!
+//! The YAML files are written by hand rather than through a YAML library: each consumer
+//! (OpenCV's own parser, yaml-cpp in ROS, PyYAML in Kalibr) accepts a different subset of
+//! YAML, and the layouts here are the ones those tools write themselves. Every number is
+//! written with the shortest digits that read back to the same `f64`.
+
+mod json;
+mod report;
+mod yaml;
+
+pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
+pub use report::{write_report, REPORT_SIZE};
+pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX};
+
+use crate::calib::{Calibration, Intrinsics, View, ViewResult};
+use anyhow::{bail, Context, Result};
+use nalgebra::{Rotation3, Vector3};
+use std::path::{Path, PathBuf};
+
+/// Where one input view came from: the detection window whose grid it is. Indexed like the
+/// views passed to [`calibrate`](crate::calib::calibrate).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ViewOrigin {
+    /// The window's sequence number (the `seq` of the detections file).
+    pub window_seq: u64,
+    /// The window's time, seconds from the start of the recording.
+    pub t_s: f64,
+}
+
+/// How much of the recording became views: the JSON result's `windows` and `detections`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct RunCounts {
+    /// Detection windows looked at.
+    pub windows: u64,
+    /// Windows in which the grid was found.
+    pub detections: u64,
+}
+
+/// One detection window as the report's timeline draws it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WindowSample {
+    /// The window's time, seconds from the start of the recording.
+    pub t_s: f64,
+    /// Circle centres the detector found in the window.
+    pub centres: usize,
+    /// Whether the grid was found among them.
+    pub grid_found: bool,
+}
+
+/// Everything [`write_all`] writes from. [`Export::new`] fills in the defaults; set the
+/// other fields with struct update syntax.
+#[derive(Debug, Clone, Copy)]
+pub struct Export<'a> {
+    /// The calibration written to the JSON, OpenCV and ROS files and drawn in the report.
+    pub calibration: &'a Calibration,
+    /// The calibration the Kalibr camchain is written from, when it differs: Kalibr's radtan
+    /// model has no k3, so a solve with k3 fixed at 0 fits it exactly. `None`: `calibration`.
+    pub kalibr_calibration: Option<&'a Calibration>,
+    /// The views calibrated from, in the order given to the solver.
+    pub views: &'a [View],
+    /// Where each view came from, indexed like `views`.
+    pub origins: &'a [ViewOrigin],
+    /// Every detection window, for the report's timeline.
+    pub timeline: &'a [WindowSample],
+    /// Windows looked at and grids found.
+    pub counts: RunCounts,
+    /// `camera_name` of the ROS file.
+    pub camera_name: &'a str,
+    /// `rostopic` of the Kalibr camchain.
+    pub rostopic: &'a str,
+    /// `calibration_time` of the OpenCV file, as the user wants it shown (OpenCV's sample
+    /// writes `asctime`'s form); `None` leaves the entry out.
+    pub calibration_time: Option<&'a str>,
+}
+
+impl<'a> Export<'a> {
+    /// An export of `calibration` made from `views`, with the counts taken from the timeline,
+    /// camera name `dvs`, topic `/dvs/events` (the names of the rpg_dvs_ros driver) and no
+    /// calibration time.
+    pub fn new(
+        calibration: &'a Calibration,
+        views: &'a [View],
+        origins: &'a [ViewOrigin],
+        timeline: &'a [WindowSample],
+    ) -> Self {
+        Self {
+            calibration,
+            kalibr_calibration: None,
+            views,
+            origins,
+            timeline,
+            counts: RunCounts {
+                windows: timeline.len() as u64,
+                detections: timeline.iter().filter(|w| w.grid_found).count() as u64,
+            },
+            camera_name: "dvs",
+            rostopic: "/dvs/events",
+            calibration_time: None,
+        }
+    }
+}
+
+/// What [`write_all`] did.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Written {
+    /// The files written, in the order of [`FILE_NAMES`].
+    pub paths: Vec<PathBuf>,
+    /// What the user should know about the exports (also in the JSON's `warnings`).
+    pub warnings: Vec<String>,
+}
+
+/// The files [`write_all`] writes, in order: JSON result, OpenCV YAML, ROS `camera_info`,
+/// Kalibr camchain, report.
+pub const FILE_NAMES: [&str; 5] =
+    ["calibration.json", "opencv.yaml", "camera_info.yaml", "kalibr_camchain.yaml", "report.png"];
+
+/// Writes every export into `dir` (made if missing) under the names of [`FILE_NAMES`];
+/// returns the paths and the warnings. Every error names the file it concerns.
+pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
+    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+    let cal = export.calibration;
+    let kalibr_cal = export.kalibr_calibration.unwrap_or(cal);
+    // Warnings first, so that the JSON carries them too.
+    let (kalibr, warnings) = kalibr_camchain_yaml(kalibr_cal, export.rostopic);
+    let mut json = result_json(cal, export.origins, export.counts)?;
+    json.warnings.extend(warnings.iter().cloned());
+    let json = serde_json::to_string_pretty(&json).context("the JSON result")? + "\n";
+
+    let path = |name: &str| dir.join(name);
+    let mut written = Written { paths: Vec::with_capacity(FILE_NAMES.len()), warnings };
+    let texts = [json, opencv_yaml(cal, export.calibration_time), camera_info_yaml(cal, export.camera_name), kalibr];
+    for (name, text) in FILE_NAMES.iter().zip(texts) {
+        let p = path(name);
+        std::fs::write(&p, text).with_context(|| format!("{}: cannot write", p.display()))?;
+        written.paths.push(p);
+    }
+    let p = path(FILE_NAMES[4]);
+    write_report(&p, cal, export.views, export.origins, export.timeline)?;
+    written.paths.push(p);
+    Ok(written)
+}
+
+/// Each point's reprojection residual, projected minus detected (px), for one used view:
+/// the view's points through its pose (`rvec`, `tvec`) and the intrinsics. A point that
+/// lands behind the camera gives NaN.
+pub fn view_residuals(view: &View, intrinsics: &Intrinsics, pose: &ViewResult) -> Vec<[f64; 2]> {
+    let rotation = Rotation3::from_scaled_axis(Vector3::from(pose.rvec));
+    let translation = Vector3::from(pose.tvec);
+    view.object
+        .iter()
+        .zip(&view.image)
+        .map(|(o, m)| match intrinsics.project(&(rotation * Vector3::from(*o) + translation)) {
+            Some(p) => [p[0] - m[0], p[1] - m[1]],
+            None => [f64::NAN; 2],
+        })
+        .collect()
+}
+
+/// The residuals of every view the calibration used, in the order of `calibration.views`
+/// (see [`view_residuals`]). `views` are the views given to the solver; an error when the
+/// calibration names a view that is not among them.
+pub fn residuals(views: &[View], calibration: &Calibration) -> Result<Vec<Vec<[f64; 2]>>> {
+    calibration
+        .views
+        .iter()
+        .map(|r| match views.get(r.view) {
+            Some(v) => Ok(view_residuals(v, &calibration.intrinsics, r)),
+            None => bail!("the calibration used view {} but only {} views were given", r.view, views.len()),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+pub(crate) mod testdata {
+    //! Calibrations for the tests, made by the solver from synthetic views.
+
+    use super::*;
+    use crate::calib::{calibrate, synthetic_views, Options};
+
+    pub const TRUTH: Intrinsics =
+        Intrinsics { fx: 352.5, fy: 351.25, cx: 171.3, cy: 128.7, k1: -0.31, k2: 0.11, p1: 4e-4, p2: -3e-4, k3: 0.0 };
+
+    /// Views, a calibration from them (k3 free or fixed), origins and a timeline.
+    pub fn setup(truth: &Intrinsics, fix_k3: bool) -> (Vec<View>, Calibration, Vec<ViewOrigin>, Vec<WindowSample>) {
+        let views = synthetic_views(truth, 14, 0.15, 11);
+        let cal = calibrate(&views, [346, 260], &Options { fix_k3, ..Options::default() }).expect("calibration");
+        // One view every fourth window, 10 ms apart, as a recording's detections would give.
+        let origins: Vec<ViewOrigin> = (0..views.len())
+            .map(|i| ViewOrigin { window_seq: 4 * i as u64 + 2, t_s: (4 * i + 2) as f64 * 0.01 })
+            .collect();
+        let timeline = (0..4 * views.len())
+            .map(|w| WindowSample { t_s: w as f64 * 0.01, centres: 30 + (w * 7) % 15, grid_found: w % 4 == 2 })
+            .collect();
+        (views, cal, origins, timeline)
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::testdata::*;
+    use super::*;
+
+    #[test]
+    fn residuals_match_the_solver_view_errors() {
+        let (views, cal, _, _) = setup(&TRUTH, false);
+        let res = residuals(&views, &cal).unwrap();
+        assert_eq!(res.len(), cal.views.len());
+        for (r, v) in res.iter().zip(&cal.views) {
+            assert_eq!(r.len(), v.points);
+            let rms = (r.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / r.len() as f64).sqrt();
+            assert!((rms - v.rms_px).abs() < 1e-9, "view {}: {rms} vs the solver's {}", v.view, v.rms_px);
+        }
+        // Too few views for the calibration's indices: an error, not a panic.
+        let e = residuals(&views[..2], &cal).unwrap_err().to_string();
+        assert!(e.contains("only 2 views were given"), "{e}");
+    }
+
+    #[test]
+    fn write_all_writes_every_file() {
+        let (views, cal, origins, timeline) = setup(&TRUTH, false);
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("new/sub");
+        let export = Export {
+            calibration_time: Some("Sat Nov 23 07:00:00 2024"),
+            ..Export::new(&cal, &views, &origins, &timeline)
+        };
+        let written = write_all(&out, &export).unwrap();
+        let want: Vec<PathBuf> = FILE_NAMES.iter().map(|n| out.join(n)).collect();
+        assert_eq!(written.paths, want);
+        for p in &written.paths {
+            assert!(std::fs::metadata(p).unwrap().len() > 100, "{}", p.display());
+        }
+        // The JSON carries the export's warnings after the solver's.
+        let json: ResultJson = serde_json::from_slice(&std::fs::read(&want[0]).unwrap()).unwrap();
+        assert_eq!(json.warnings[cal.warnings.len()..], written.warnings[..]);
+        assert_eq!(json.windows, timeline.len() as u64);
+        assert_eq!(json.detections, views.len() as u64);
+    }
+
+    #[test]
+    fn write_all_errors_name_the_path() {
+        let (views, cal, origins, timeline) = setup(&TRUTH, false);
+        let dir = tempfile::tempdir().unwrap();
+        // The directory to write into is a file.
+        let blocker = dir.path().join("taken");
+        std::fs::write(&blocker, b"x").unwrap();
+        let e = format!("{:#}", write_all(&blocker, &Export::new(&cal, &views, &origins, &timeline)).unwrap_err());
+        assert!(e.contains("taken"), "{e}");
+        // One of the files is a directory.
+        let out = dir.path().join("out");
+        std::fs::create_dir_all(out.join("camera_info.yaml")).unwrap();
+        let e = format!("{:#}", write_all(&out, &Export::new(&cal, &views, &origins, &timeline)).unwrap_err());
+        assert!(e.contains("camera_info.yaml"), "{e}");
+        // Origins missing for the views used.
+        let e =
+            format!("{:#}", write_all(dir.path(), &Export::new(&cal, &views, &origins[..3], &timeline)).unwrap_err());
+        assert!(e.contains("origin"), "{e}");
+    }
+}

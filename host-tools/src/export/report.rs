@@ -1,0 +1,451 @@
+//! The PNG report: four panels a person reads at a glance to judge a calibration.
+//!
+//! - reprojection error per view (RMS, px), with the median;
+//! - every point's residual (dx, dy), with the overall RMS as a circle;
+//! - where on the sensor the points were detected, with an 8×6 cell occupancy;
+//! - circle centres per detection window over time, with the windows whose grid was found.
+
+use super::{residuals, ViewOrigin, WindowSample};
+use crate::calib::{Calibration, View};
+use anyhow::{anyhow, Context, Result};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+use std::path::Path;
+use std::sync::OnceLock;
+
+/// Width and height of the report, px.
+pub const REPORT_SIZE: (u32, u32) = (1600, 1200);
+
+/// DejaVu Sans, reduced to the characters drawn here (see assets/DejaVuSans-LICENSE.txt):
+/// built in so that the report looks the same on a machine without fonts.
+const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
+/// The family plotters asks for when a style names none (axis labels), so that one
+/// registration serves every text.
+const FAMILY: &str = "sans-serif";
+/// Sensor cells counted for coverage: columns × rows.
+const CELLS: (usize, usize) = (8, 6);
+
+const BLUE: RGBColor = RGBColor(31, 119, 180);
+const ORANGE: RGBColor = RGBColor(255, 127, 14);
+const GREEN: RGBColor = RGBColor(44, 160, 44);
+const RED: RGBColor = RGBColor(214, 39, 40);
+const GREY: RGBColor = RGBColor(150, 150, 150);
+const DARK: RGBColor = RGBColor(40, 40, 40);
+
+/// Tick labels and axis names.
+const LABELS: (&str, u32) = (FAMILY, 15);
+const DESCS: (&str, u32) = (FAMILY, 16);
+
+type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+
+/// Tick label of a count or an index: whole numbers only (ticks between them stay bare).
+fn whole(v: &f64) -> String {
+    if (v - v.round()).abs() < 1e-9 {
+        format!("{v:.0}")
+    } else {
+        String::new()
+    }
+}
+
+fn font_ready() -> Result<()> {
+    static REGISTERED: OnceLock<bool> = OnceLock::new();
+    let ok = *REGISTERED.get_or_init(|| register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
+    if ok {
+        Ok(())
+    } else {
+        Err(anyhow!("the report's built-in font does not load"))
+    }
+}
+
+/// Draws the report of `cal` into a PNG at `path` ([`REPORT_SIZE`]). `views` are the views
+/// given to the solver, `origins` where each came from (used to mark the views on the
+/// timeline; may be empty), `timeline` every detection window (may be empty).
+pub fn write_report(
+    path: &Path,
+    cal: &Calibration,
+    views: &[View],
+    origins: &[ViewOrigin],
+    timeline: &[WindowSample],
+) -> Result<()> {
+    let png =
+        render(cal, views, origins, timeline).with_context(|| format!("{}: cannot draw the report", path.display()))?;
+    std::fs::write(path, png).with_context(|| format!("{}: cannot write", path.display()))
+}
+
+/// The report as PNG bytes. Drawn into memory, so that a failure leaves no half-drawn file.
+fn render(cal: &Calibration, views: &[View], origins: &[ViewOrigin], timeline: &[WindowSample]) -> Result<Vec<u8>> {
+    font_ready()?;
+    let res = residuals(views, cal)?;
+    let (w, h) = REPORT_SIZE;
+    let mut rgb = vec![0u8; w as usize * h as usize * 3];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        draw(&root, cal, views, &res, origins, timeline).map_err(|e| anyhow!("{e}"))?;
+        root.present().map_err(|e| anyhow!("{e}"))?;
+    }
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut writer = enc.write_header()?;
+    writer.write_image_data(&rgb)?;
+    writer.finish()?;
+    Ok(out)
+}
+
+type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
+
+fn draw(
+    root: &Area<'_>,
+    cal: &Calibration,
+    views: &[View],
+    res: &[Vec<[f64; 2]>],
+    origins: &[ViewOrigin],
+    timeline: &[WindowSample],
+) -> DrawResult {
+    root.fill(&WHITE)?;
+    // Room above the title, which plotters sets almost against the edge.
+    let root = root.margin(10, 0, 0, 0);
+    let k = &cal.intrinsics;
+    let points: usize = cal.views.iter().map(|v| v.points).sum();
+    let title = format!(
+        "evcal calibration {}×{} — fx {:.2}  fy {:.2}  cx {:.2}  cy {:.2}  k1 {:.4}  k2 {:.4}  p1 {:.2e}  p2 {:.2e}  k3 {:.4}",
+        cal.image_size[0], cal.image_size[1], k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3
+    );
+    let body = root.titled(&title, (FAMILY, 26))?;
+    let subtitle = format!(
+        "RMS {:.3} px over {points} points of {} views ({} set aside); median view {:.3} px",
+        cal.rms_px,
+        cal.views.len(),
+        cal.rejected.len(),
+        cal.median_view_px
+    );
+    let body = body.titled(&subtitle, (FAMILY, 20).into_font().color(&DARK))?;
+    let panels = body.split_evenly((2, 2));
+    per_view_panel(&panels[0], cal, views.len())?;
+    scatter_panel(&panels[1], cal, res)?;
+    coverage_panel(&panels[2], cal, views)?;
+    timeline_panel(&panels[3], cal, origins, timeline)?;
+    Ok(())
+}
+
+/// A range that plotters can draw: finite, not empty.
+fn span(lo: f64, hi: f64) -> (f64, f64) {
+    match (lo.is_finite(), hi.is_finite()) {
+        (true, true) if hi > lo => (lo, hi),
+        (true, _) => (lo, lo + 1.0),
+        _ => (0.0, 1.0),
+    }
+}
+
+/// Bars of each used view's RMS at its input index; views set aside as red marks on the
+/// axis; the median as a line.
+fn per_view_panel(area: &Area<'_>, cal: &Calibration, n_views: usize) -> DrawResult {
+    let n = n_views.max(cal.views.iter().map(|v| v.view + 1).max().unwrap_or(0)).max(1);
+    let top = cal.views.iter().map(|v| v.rms_px).filter(|x| x.is_finite()).fold(0.0, f64::max);
+    let (y0, y1) = span(0.0, (top.max(cal.median_view_px) * 1.15).max(1e-3));
+    let mut chart = ChartBuilder::on(area)
+        .caption(
+            format!("Reprojection error per view (median {:.3} px; red: set aside)", cal.median_view_px),
+            (FAMILY, 20),
+        )
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        .build_cartesian_2d(-0.5..n as f64 - 0.5, y0..y1)?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .x_label_formatter(&whole)
+        .x_desc("view")
+        .y_desc("RMS (px)")
+        .draw()?;
+    // Half a view wide, or a pixel-wide sliver when there are hundreds.
+    let half = 0.4;
+    // Bars far above the median stand out in orange.
+    let high = 2.0 * cal.median_view_px;
+    chart.draw_series(cal.views.iter().filter(|v| v.rms_px.is_finite()).map(|v| {
+        let x = v.view as f64;
+        let colour = if v.rms_px > high { ORANGE } else { BLUE };
+        Rectangle::new([(x - half, 0.0), (x + half, v.rms_px.min(y1))], colour.filled())
+    }))?;
+    let mark = (y1 - y0) * 0.02;
+    chart.draw_series(cal.rejected.iter().map(|r| {
+        let x = r.view as f64;
+        Rectangle::new([(x - half, 0.0), (x + half, mark)], RED.filled())
+    }))?;
+    if cal.median_view_px.is_finite() {
+        let m = cal.median_view_px;
+        chart.draw_series(std::iter::once(PathElement::new(
+            vec![(-0.5, m), (n as f64 - 0.5, m)],
+            RED.stroke_width(2),
+        )))?;
+    }
+    Ok(())
+}
+
+/// The plotting rectangle's margins that give x and y the same scale: extra margin on the
+/// longer side of `area` (after `label_w` on the left and `label_h` below) so that its
+/// aspect is `want` (width / height).
+fn equal_aspect_margins(area: &Area<'_>, label_w: u32, label_h: u32, want: f64) -> (u32, u32) {
+    let (w, h) = area.dim_in_pixel();
+    let (pw, ph) = (f64::from(w.saturating_sub(label_w + 24)), f64::from(h.saturating_sub(label_h + 50)));
+    if pw <= 0.0 || ph <= 0.0 || !want.is_finite() || want <= 0.0 {
+        return (0, 0);
+    }
+    if pw / ph > want {
+        (((pw - ph * want) / 2.0) as u32, 0)
+    } else {
+        (0, ((ph - pw / want) / 2.0) as u32)
+    }
+}
+
+/// Every point's residual with the overall RMS as a circle; the axes span most points and
+/// say how many fall outside.
+fn scatter_panel(area: &Area<'_>, cal: &Calibration, res: &[Vec<[f64; 2]>]) -> DrawResult {
+    let mut all: Vec<[f64; 2]> =
+        res.iter().flatten().copied().filter(|d| d[0].is_finite() && d[1].is_finite()).collect();
+    // The 99.5th percentile of |dx|, |dy| sets the scale, so that a few wild points do
+    // not shrink the cloud to a dot.
+    let mut mags: Vec<f64> = all.iter().flat_map(|d| [d[0].abs(), d[1].abs()]).collect();
+    mags.sort_by(f64::total_cmp);
+    let p = mags.get((mags.len() as f64 * 0.995) as usize).or(mags.last()).copied().unwrap_or(0.0);
+    let r = (p * 1.1).max(cal.rms_px * 1.5).max(0.05);
+    let r = if r.is_finite() { r } else { 1.0 };
+    let outside = all.iter().filter(|d| d[0].abs() > r || d[1].abs() > r).count();
+    all.retain(|d| d[0].abs() <= r && d[1].abs() <= r);
+    let caption = if outside > 0 {
+        format!("Residuals, projected − detected ({outside} beyond the axes; circle: RMS)")
+    } else {
+        "Residuals, projected − detected (circle: RMS)".to_string()
+    };
+    let titled = area.titled(&caption, (FAMILY, 20))?;
+    let (mx, my) = equal_aspect_margins(&titled, 65, 45, 1.0);
+    let mut chart = ChartBuilder::on(&titled)
+        .margin(12)
+        .margin_left(12 + mx)
+        .margin_right(12 + mx)
+        .margin_top(12 + my)
+        .margin_bottom(12 + my)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        .build_cartesian_2d(-r..r, -r..r)?;
+    chart.configure_mesh().label_style(LABELS).axis_desc_style(DESCS).x_desc("dx (px)").y_desc("dy (px)").draw()?;
+    let axis = GREY.stroke_width(1);
+    chart.draw_series([
+        PathElement::new(vec![(-r, 0.0), (r, 0.0)], axis),
+        PathElement::new(vec![(0.0, -r), (0.0, r)], axis),
+    ])?;
+    // Faint dots, so that where they pile up shows.
+    let style = BLUE.mix(0.35).filled();
+    chart.draw_series(all.iter().map(|d| Circle::new((d[0], d[1]), 2, style)))?;
+    let rms = cal.rms_px;
+    if rms.is_finite() && rms > 0.0 && rms <= r {
+        let circle: Vec<(f64, f64)> = (0..=120)
+            .map(|i| {
+                let a = i as f64 / 120.0 * std::f64::consts::TAU;
+                (rms * a.cos(), rms * a.sin())
+            })
+            .collect();
+        chart.draw_series(std::iter::once(PathElement::new(circle, RED.stroke_width(2))))?;
+    }
+    Ok(())
+}
+
+/// Which cell of the sensor's `CELLS` grid a pixel falls in.
+fn cell(p: [f64; 2], size: [u32; 2]) -> Option<(usize, usize)> {
+    let (w, h) = (f64::from(size[0].max(1)), f64::from(size[1].max(1)));
+    // Pixel centres are at integers: the sensor spans [-0.5, w - 0.5].
+    let (u, v) = ((p[0] + 0.5) / w, (p[1] + 0.5) / h);
+    ((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v))
+        .then_some(((u * CELLS.0 as f64) as usize, (v * CELLS.1 as f64) as usize))
+}
+
+/// The sensor (rows downwards, as in the image) with every detected point: used views' in
+/// blue, views set aside in red; cells shaded green by how many used points they hold.
+fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawResult {
+    let [w, h] = cal.image_size.map(|x| f64::from(x.max(1)));
+    let mut used = vec![false; views.len()];
+    for v in &cal.views {
+        if let Some(u) = used.get_mut(v.view) {
+            *u = true;
+        }
+    }
+    let mut counts = [[0usize; CELLS.0]; CELLS.1];
+    for (v, _) in views.iter().enumerate().filter(|&(i, _)| used[i]) {
+        for &p in &views[v].image {
+            if let Some((c, r)) = cell(p, cal.image_size) {
+                counts[r][c] += 1;
+            }
+        }
+    }
+    let covered = counts.iter().flatten().filter(|&&n| n > 0).count();
+    let most = counts.iter().flatten().copied().max().unwrap_or(0).max(1);
+    let caption =
+        format!("Sensor coverage: {covered} of {} cells ({}×{}) hold points", CELLS.0 * CELLS.1, CELLS.0, CELLS.1);
+    let titled = area.titled(&caption, (FAMILY, 20))?;
+    let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
+    let mut chart = ChartBuilder::on(&titled)
+        .margin(12)
+        .margin_left(12 + mx)
+        .margin_right(12 + mx)
+        .margin_top(12 + my)
+        .margin_bottom(12 + my)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        // Rows grow downwards, as in the image.
+        .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .x_label_formatter(&whole)
+        .y_label_formatter(&whole)
+        .x_desc("column (px)")
+        .y_desc("row (px)")
+        .draw()?;
+    let (cw, ch) = (w / CELLS.0 as f64, h / CELLS.1 as f64);
+    let mut cells = Vec::new();
+    for (r, row) in counts.iter().enumerate() {
+        for (c, &n) in row.iter().enumerate() {
+            let x0 = c as f64 * cw - 0.5;
+            let y0 = r as f64 * ch - 0.5;
+            // Empty cells stay white; a single point already shows as a tint.
+            let shade = if n == 0 { 0.0 } else { 0.15 + 0.45 * n as f64 / most as f64 };
+            cells.push(Rectangle::new([(x0, y0), (x0 + cw, y0 + ch)], GREEN.mix(shade).filled()));
+            cells.push(Rectangle::new([(x0, y0), (x0 + cw, y0 + ch)], GREY.mix(0.5).stroke_width(1)));
+        }
+    }
+    chart.draw_series(cells)?;
+    for (i, view) in views.iter().enumerate() {
+        let colour = if used[i] { BLUE } else { RED };
+        chart.draw_series(
+            view.image
+                .iter()
+                .filter(|p| p[0].is_finite() && p[1].is_finite())
+                .map(|p| Circle::new((p[0], p[1]), 2, colour.filled())),
+        )?;
+    }
+    chart.draw_series(std::iter::once(Rectangle::new([(-0.5, -0.5), (w - 0.5, h - 0.5)], DARK.stroke_width(2))))?;
+    Ok(())
+}
+
+/// Centres per window over time: green where the grid was found, grey where not; the views
+/// the calibration used are ticked along the top.
+fn timeline_panel(area: &Area<'_>, cal: &Calibration, origins: &[ViewOrigin], timeline: &[WindowSample]) -> DrawResult {
+    let ok: Vec<&WindowSample> = timeline.iter().filter(|s| s.t_s.is_finite()).collect();
+    let found = ok.iter().filter(|s| s.grid_found).count();
+    let used_t: Vec<f64> =
+        cal.views.iter().filter_map(|v| origins.get(v.view)).map(|o| o.t_s).filter(|t| t.is_finite()).collect();
+    let ts = ok.iter().map(|s| s.t_s).chain(used_t.iter().copied());
+    let (lo, hi) = ts.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| (lo.min(t), hi.max(t)));
+    let (t0, t1) = if lo.is_finite() { span(lo, hi) } else { (0.0, 1.0) };
+    let pad = (t1 - t0) * 0.02;
+    let top = ok.iter().map(|s| s.centres).max().unwrap_or(0).max(1) as f64 * 1.15;
+    let caption = format!("Detections over time: grid found in {found} of {} windows (ticks: views used)", ok.len());
+    let mut chart = ChartBuilder::on(area)
+        .caption(caption, (FAMILY, 20))
+        .margin(12)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        .build_cartesian_2d(t0 - pad..t1 + pad, 0.0..top)?;
+    chart
+        .configure_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .y_label_formatter(&whole)
+        .x_desc("time (s)")
+        .y_desc("circle centres in window")
+        .draw()?;
+    chart.draw_series(
+        ok.iter().filter(|s| !s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 2, GREY.filled())),
+    )?;
+    chart.draw_series(
+        ok.iter().filter(|s| s.grid_found).map(|s| Circle::new((s.t_s, s.centres as f64), 3, GREEN.filled())),
+    )?;
+    let tick = top * 0.05;
+    chart
+        .draw_series(used_t.iter().map(|&t| PathElement::new(vec![(t, top), (t, top - tick)], BLUE.stroke_width(2))))?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod test {
+    use super::super::testdata::*;
+    use super::*;
+    use std::collections::HashSet;
+
+    /// Width, height and RGB(A) pixels of a PNG, and its channel count.
+    fn decode(bytes: &[u8]) -> (u32, u32, usize, Vec<u8>) {
+        let mut reader = png::Decoder::new(bytes).read_info().expect("a PNG");
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).expect("a frame");
+        buf.truncate(info.buffer_size());
+        (info.width, info.height, info.color_type.samples(), buf)
+    }
+
+    /// Distinct colours in the `(x0..x1, y0..y1)` block of an image.
+    fn colours(img: &(u32, u32, usize, Vec<u8>), x: std::ops::Range<u32>, y: std::ops::Range<u32>) -> usize {
+        let (w, _, n, px) = img;
+        let mut set = HashSet::new();
+        for row in y {
+            for col in x.clone() {
+                let at = (row as usize * *w as usize + col as usize) * n;
+                set.insert(px[at..at + n].to_vec());
+            }
+        }
+        set.len()
+    }
+
+    #[test]
+    fn report_is_a_png_of_four_drawn_panels() {
+        let (views, cal, origins, timeline) = setup(&TRUTH, false);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("report.png");
+        write_report(&path, &cal, &views, &origins, &timeline).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let img = decode(&bytes);
+        assert_eq!((img.0, img.1), REPORT_SIZE);
+        // Every quadrant (each a panel) holds text, axes and data in several colours.
+        let (w, h) = REPORT_SIZE;
+        for (x, y) in [(0..w / 2, 80..h / 2), (w / 2..w, 80..h / 2), (0..w / 2, h / 2..h), (w / 2..w, h / 2..h)] {
+            let n = colours(&img, x.clone(), y.clone());
+            assert!(n >= 8, "panel at {x:?}, {y:?}: {n} colours");
+        }
+        // The title strip holds anti-aliased text, not a blank band.
+        assert!(colours(&img, 0..w, 0..60) >= 4);
+    }
+
+    #[test]
+    fn report_survives_little_data() {
+        let (views, cal, _, _) = setup(&TRUTH, false);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("report.png");
+        // No timeline and no origins: the panels are drawn empty.
+        write_report(&path, &cal, &views, &[], &[]).unwrap();
+        assert_eq!((decode(&std::fs::read(&path).unwrap()).0), REPORT_SIZE.0);
+        // One window only; non-finite times are left out.
+        let one = [
+            WindowSample { t_s: 1.0, centres: 0, grid_found: false },
+            WindowSample { t_s: f64::NAN, centres: 3, grid_found: true },
+        ];
+        write_report(&path, &cal, &views, &[], &one).unwrap();
+        // A directory that does not exist: an error naming the file, nothing written.
+        let bad = dir.path().join("missing/report.png");
+        let e = format!("{:#}", write_report(&bad, &cal, &views, &[], &[]).unwrap_err());
+        assert!(e.contains("missing/report.png"), "{e}");
+    }
+
+    #[test]
+    fn cells_cover_the_sensor() {
+        assert_eq!(cell([-0.5, -0.5], [346, 260]), Some((0, 0)));
+        assert_eq!(cell([345.4, 259.4], [346, 260]), Some((7, 5)));
+        assert_eq!(cell([345.5, 0.0], [346, 260]), None);
+        assert_eq!(cell([f64::NAN, 0.0], [346, 260]), None);
+    }
+}
