@@ -65,11 +65,6 @@ if ! python3 -c "import expelliarmus, numpy" >/dev/null 2>&1; then
   echo "setup: installing Python packages: expelliarmus numpy"
   python3 -m pip install --quiet --disable-pip-version-check "expelliarmus==1.1.12" numpy
 fi
-# OpenCV, the reference evcal's solver is compared with (tests/tests/opencv.rs).
-if ! python3 -c "import cv2" >/dev/null 2>&1; then
-  echo "setup: installing Python package opencv-python-headless"
-  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "opencv-python-headless==4.12.0.88"
-fi
 if [ "$want_fuzz" = 1 ] && ! command -v cargo-fuzz >/dev/null 2>&1; then
   echo "setup: installing cargo-fuzz (crates.io)"
   cargo install --quiet --locked cargo-fuzz

@@ -11,16 +11,23 @@
 //!    nearest-neighbour distance) gives the grid's scale; centres far from it are set aside.
 //! 2. **Lattice growth**: the board is a square lattice turned by 45° (diagonal neighbours
 //!    `S√2` apart). From a seed whose four nearest neighbours form two opposite pairs, the
-//!    lattice is grown point by point, each step predicted from the points already placed
-//!    (extrapolating along a lattice line follows perspective and distortion), accepting a
-//!    centre only near the prediction and with a radius like its neighbour's.
-//! 3. **Placement and checks**: of the eight ways to lay the lattice's axes on the board,
-//!    only those that put every point inside the pattern, on the right parity, and keep the
-//!    board's front towards the camera (a mirror image would put the camera behind the
-//!    board) survive. A unique survivor is the answer; several are a miss, except for the
-//!    pattern's own 180° symmetry (even COLS only), settled by one rule (below). Every line
-//!    of the lattice must then be smooth, and a homography must fit: a wrong ordering is
-//!    worse than a miss.
+//!    lattice is grown cell by cell: each free cell beside it is predicted by an affine map
+//!    fitted to the placed cells around it (local, so perspective and distortion bend it
+//!    little), and takes the centre nearest the prediction within a quarter step, with a
+//!    radius like its neighbours'. Diagonal cells bridge a missing circle.
+//! 3. **Placement and checks**: of the eight ways to lay the lattice's axes on the board and
+//!    every shift, only those that put the points inside the pattern, on the right parity,
+//!    with the board's front towards the camera (a mirror image needs the camera behind the
+//!    board) count. Up to [`MAX_STRAYS`] points beyond the pattern (marks printed beside the
+//!    grid, a background disc in line) may be left out, but then the placement must hold two
+//!    points more than any other: a rival holds the strays instead of a whole edge line. A
+//!    unique placement is the answer; several are a miss, except for the pattern's own 180°
+//!    symmetry (even COLS only), settled by one rule (below). Every line of the lattice must
+//!    then be smooth, and a homography must fit: a wrong ordering is worse than a miss.
+//!
+//! With odd COLS the pattern is its own mirror image (column i ↔ COLS−1−i), so a mirrored
+//! image is also a view of the board from the front, and is labelled as one; with even COLS
+//! a mirrored image has no labelling and is a miss.
 //!
 //! **Pattern convention** (as E-Calib): `ROWSxCOLS`, spacing `S`; board point (i, j), i <
 //! COLS, j < ROWS, is at (i·S, (2j + i mod 2)·S, 0) and has index `i·ROWS + j`.
@@ -153,8 +160,14 @@ pub enum Miss {
 
 impl Miss {
     /// Every reason, for reports.
-    pub const ALL: [Miss; 6] =
-        [Miss::TooFewCentres, Miss::NoLattice, Miss::TooFewPoints, Miss::NoPlacement, Miss::Ambiguous, Miss::Inconsistent];
+    pub const ALL: [Miss; 6] = [
+        Miss::TooFewCentres,
+        Miss::NoLattice,
+        Miss::TooFewPoints,
+        Miss::NoPlacement,
+        Miss::Ambiguous,
+        Miss::Inconsistent,
+    ];
 }
 
 impl fmt::Display for Miss {
@@ -236,19 +249,7 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
         }
     }
     let lattice = best.unwrap_or_default();
-    if std::env::var("GRID_DEBUG").is_ok() {
-        let mut rr: Vec<(f64, Cell, [f64; 2])> = lattice.iter().map(|(&c, &k)| {
-            let near: Vec<(Cell, usize)> = around(&lattice, c, 2).into_iter().filter(|&(q, _)| q != c).collect();
-            (Affine::fit(&pts, &near).map(|m| dist(m.at(c), pts[k].p) / m.step()).unwrap_or(9.0), c, pts[k].p)
-        }).collect();
-        rr.sort_by(|a, b| b.0.total_cmp(&a.0));
-        let (mmin, mmax) = lattice.keys().fold((i32::MAX, i32::MIN), |(a, b), c| (a.min(c.0), b.max(c.0)));
-        let (nmin, nmax) = lattice.keys().fold((i32::MAX, i32::MIN), |(a, b), c| (a.min(c.1), b.max(c.1)));
-        eprintln!("lattice m {mmin}..{mmax} n {nmin}..{nmax}; worst {:?}", &rr[..rr.len().min(4)]);
-        for (e, c, p) in &rr { eprintln!("cell {} {} {:.1} {:.1} {:.3} {}", c.0, c.1, p[0], p[1], e, false); }
-    }
     if lattice.len() < needed {
-        if std::env::var("GRID_DEBUG").is_ok() { eprintln!("toofew: lattice {} candidates {} pts {} seeds {}", lattice.len(), candidates.len(), pts.len(), seeds.len()); }
         return Err(Miss::TooFewPoints);
     }
     let labels = place(&pts, &lattice, pattern)?;
@@ -256,10 +257,8 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
     let kept: std::collections::HashSet<usize> = labels.iter().map(|&(_, k)| k).collect();
     let lattice: HashMap<Cell, usize> = lattice.into_iter().filter(|(_, k)| kept.contains(k)).collect();
     check_smooth(&pts, &lattice)?;
-    let mut points: Vec<GridPoint> = labels
-        .iter()
-        .map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r })
-        .collect();
+    let mut points: Vec<GridPoint> =
+        labels.iter().map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r }).collect();
     points.sort_by_key(|g| g.index);
     let homography_rms_px = homography_check(&points, pattern)?;
     Ok(GridDetection { points, homography_rms_px })
@@ -385,11 +384,6 @@ fn grow(pts: &[Pt], candidates: &[usize], s: usize, a: [f64; 2], b: [f64; 2]) ->
                 .map(|k| (dist(pts[k].p, pred), k))
                 .filter(|&(e, k)| e < 0.25 * step && (pts[k].r / r_ref - 1.0).abs() < 0.3)
                 .min_by(|x, y| x.0.total_cmp(&y.0));
-            if found.is_none() && std::env::var("GRID_DEBUG2").is_ok() {
-                if let Some((e, k)) = candidates.iter().copied().filter(|k| !used.contains(k)).map(|k| (dist(pts[k].p, pred), k)).min_by(|x, y| x.0.total_cmp(&y.0)) {
-                    if e < 0.6 * step { eprintln!("reject cell {c:?} e/step {:.2} r ratio {:.2} support {}", e / step, pts[k].r / r_ref, near.len()); }
-                }
-            }
             if let Some((_, k)) = found {
                 at.insert(c, k);
                 used.insert(k);
@@ -487,9 +481,7 @@ fn symmetry(c: Cell, t: usize) -> Cell {
 
 /// Most lattice points a placement may leave outside the pattern: strays at the lattice's
 /// edge (marks printed beside the grid, a disc of the background that happens to line up).
-fn max_dropped(_n: usize) -> usize {
-    2
-}
+pub const MAX_STRAYS: usize = 2;
 
 /// Labels the lattice's points with the pattern's indices: `(index, point)` pairs.
 ///
@@ -497,11 +489,7 @@ fn max_dropped(_n: usize) -> usize {
 /// puts inside the pattern (on the right parity, with the board's front to the camera).
 /// A placement that holds them all is taken if it is the only one; otherwise the best
 /// placement may leave a few strays outside, but only if no other placement comes close.
-fn place(
-    pts: &[Pt],
-    lattice: &HashMap<Cell, usize>,
-    pattern: &Pattern,
-) -> Result<Vec<(usize, usize)>, Miss> {
+fn place(pts: &[Pt], lattice: &HashMap<Cell, usize>, pattern: &Pattern) -> Result<Vec<(usize, usize)>, Miss> {
     let (cols, rows2) = (pattern.cols as i64, 2 * pattern.rows as i64);
     let n = lattice.len();
     let mut scored: Vec<Vec<(usize, usize)>> = Vec::new();
@@ -532,7 +520,7 @@ fn place(
                         (i * pattern.rows + (k - i % 2) / 2, p)
                     })
                     .collect();
-                if labels.len() + max_dropped(n) >= n && front_facing(pts, &labels, pattern) {
+                if labels.len() + MAX_STRAYS >= n && front_facing(pts, &labels, pattern) {
                     scored.push(labels);
                 }
             }
@@ -547,7 +535,6 @@ fn place(
     let twin = |a: &[(usize, usize)], b: &[(usize, usize)]| pattern.cols % 2 == 0 && is_half_turn(a, b, pattern);
     let margin = if best == n { 1 } else { 2 };
     let rivals: Vec<usize> = (1..scored.len()).filter(|&q| scored[q].len() + margin > best).collect();
-    if std::env::var("GRID_DEBUG").is_ok() { eprintln!("place n {n} counts {:?}", scored.iter().map(Vec::len).take(6).collect::<Vec<_>>()); }
     match rivals.as_slice() {
         [] => Ok(scored.swap_remove(0)),
         [q] if twin(&scored[0], &scored[*q]) => {
@@ -627,7 +614,6 @@ fn check_smooth(pts: &[Pt], lattice: &HashMap<Cell, usize>) -> Result<(), Miss> 
             let (pa, p, pb) = (pts[a].p, pts[k].p, pts[b].p);
             let second = (pa[0] - 2.0 * p[0] + pb[0]).hypot(pa[1] - 2.0 * p[1] + pb[1]);
             if second > 0.15 * dist(pa, pb) / 2.0 + 0.5 {
-                if std::env::var("GRID_DEBUG").is_ok() { eprintln!("smooth: second {second:.2} span {:.2}", dist(pa, pb)); }
                 return Err(Miss::Inconsistent);
             }
         }
@@ -639,10 +625,13 @@ fn check_smooth(pts: &[Pt], lattice: &HashMap<Cell, usize>) -> Result<(), Miss> 
 /// stay well below the local spacing (distortion bends the grid by a few pixels at most; a
 /// wrong label moves a point by a whole spacing). Returns the RMS residual.
 fn homography_check(points: &[GridPoint], pattern: &Pattern) -> Result<f64, Miss> {
-    let obj: Vec<[f64; 2]> = points.iter().map(|g| {
-        let o = pattern.object_point(g.index);
-        [o[0], o[1]]
-    }).collect();
+    let obj: Vec<[f64; 2]> = points
+        .iter()
+        .map(|g| {
+            let o = pattern.object_point(g.index);
+            [o[0], o[1]]
+        })
+        .collect();
     let img: Vec<[f64; 2]> = points.iter().map(|g| g.image).collect();
     let h = crate::calib::fit_homography(&obj, &img).ok_or(Miss::Inconsistent)?;
     let mut sq = 0.0;
@@ -656,17 +645,308 @@ fn homography_check(points: &[GridPoint], pattern: &Pattern) -> Result<f64, Miss
         let e = (u - m[0]).hypot(v - m[1]);
         sq += e * e;
         // The local spacing: distance to the nearest other grid point.
-        let spacing = img
-            .iter()
-            .enumerate()
-            .filter(|&(q, _)| q != k)
-            .map(|(_, p)| dist(*p, *m))
-            .fold(f64::INFINITY, f64::min);
+        let spacing =
+            img.iter().enumerate().filter(|&(q, _)| q != k).map(|(_, p)| dist(*p, *m)).fold(f64::INFINITY, f64::min);
         worst_rel = worst_rel.max(e / spacing);
     }
-    if std::env::var("GRID_DEBUG").is_ok() && worst_rel >= 0.3 { eprintln!("homography worst_rel {worst_rel:.2}"); }
     if worst_rel.is_nan() || worst_rel >= 0.3 {
         return Err(Miss::Inconsistent);
     }
     Ok((sq / points.len() as f64).sqrt())
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// A camera looking at the board: rotation about the optical axis `roll`, then tilts
+    /// about the board's x and y axes, the board's middle at `distance` metres.
+    #[derive(Debug, Clone, Copy)]
+    struct Shot {
+        roll: f64,
+        tilt_x: f64,
+        tilt_y: f64,
+        distance: f64,
+        k1: f64,
+    }
+
+    const F: f64 = 300.0;
+    const SIZE: [f64; 2] = [346.0, 260.0];
+
+    impl Shot {
+        fn flat(roll_deg: f64) -> Self {
+            Self { roll: roll_deg.to_radians(), tilt_x: 0.0, tilt_y: 0.0, distance: 0.7, k1: 0.0 }
+        }
+
+        /// Image of board point (x, y) (board middle at the origin), px; and the circle's
+        /// apparent radius.
+        fn project(&self, pattern: &Pattern, x: f64, y: f64) -> ([f64; 2], f64) {
+            let mid = [
+                (pattern.cols - 1) as f64 * pattern.spacing / 2.0,
+                (2 * pattern.rows - 1) as f64 * pattern.spacing / 2.0,
+            ];
+            let (x, y) = (x - mid[0], y - mid[1]);
+            // Tilt about y (x toward the camera), then about x.
+            let (cy, sy) = (self.tilt_y.cos(), self.tilt_y.sin());
+            let (x1, z1) = (x * cy, -x * sy);
+            let (cx, sx) = (self.tilt_x.cos(), self.tilt_x.sin());
+            let (y2, z2) = (y * cx - z1 * sx, y * sx + z1 * cx);
+            let (cr, sr) = (self.roll.cos(), self.roll.sin());
+            let (x3, y3) = (x1 * cr - y2 * sr, x1 * sr + y2 * cr);
+            let z = self.distance + z2;
+            let (a, b) = (x3 / z, y3 / z);
+            let d = 1.0 + self.k1 * (a * a + b * b);
+            ([SIZE[0] / 2.0 + F * a * d, SIZE[1] / 2.0 + F * b * d], F * pattern.spacing * 0.3 / z)
+        }
+    }
+
+    fn centre(p: [f64; 2], r: f64) -> CenterRecord {
+        CenterRecord { u: p[0] as f32, v: p[1] as f32, r: r as f32, spread: 0.3, n: 60, converged: true }
+    }
+
+    /// The centres of a shot, each with its true index (`None`: clutter), noise `noise` px
+    /// from a fixed generator.
+    fn shoot(pattern: &Pattern, shot: &Shot, noise: f64, seed: u64) -> Vec<(CenterRecord, Option<usize>)> {
+        let mut rng = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+        let mut next = move || {
+            rng ^= rng << 13;
+            rng ^= rng >> 7;
+            rng ^= rng << 17;
+            (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        (0..pattern.len())
+            .map(|k| {
+                let o = pattern.object_point(k);
+                let (p, r) = shot.project(pattern, o[0], o[1]);
+                (centre([p[0] + noise * next(), p[1] + noise * next()], r), Some(k))
+            })
+            .collect()
+    }
+
+    fn in_view(c: &[(CenterRecord, Option<usize>)]) -> Vec<(CenterRecord, Option<usize>)> {
+        c.iter()
+            .filter(|(c, _)| c.u > 0.0 && c.v > 0.0 && f64::from(c.u) < SIZE[0] && f64::from(c.v) < SIZE[1])
+            .copied()
+            .collect()
+    }
+
+    /// Every point found carries the index of the circle it is: a wrong ordering fails.
+    fn check(found: &GridDetection, truth: &[(CenterRecord, Option<usize>)]) {
+        for g in &found.points {
+            let (_, idx) = truth
+                .iter()
+                .min_by(|a, b| {
+                    let d = |c: &CenterRecord| (f64::from(c.u) - g.image[0]).hypot(f64::from(c.v) - g.image[1]);
+                    d(&a.0).total_cmp(&d(&b.0))
+                })
+                .unwrap();
+            assert_eq!(*idx, Some(g.index), "point at {:?} labelled {}", g.image, g.index);
+        }
+    }
+
+    fn find(c: &[(CenterRecord, Option<usize>)], pattern: &Pattern) -> Result<GridDetection, Miss> {
+        let centres: Vec<CenterRecord> = c.iter().map(|x| x.0).collect();
+        find_grid(&centres, pattern, &FindOptions::default())
+    }
+
+    #[test]
+    fn any_rotation_gives_the_one_labelling() {
+        for (rows, cols) in [(4, 11), (3, 9), (3, 7)] {
+            let pattern = Pattern::new(rows, cols, 0.024).unwrap();
+            for deg in (0..360).step_by(10) {
+                let shot = Shot { distance: 0.35 + 0.05 * cols as f64, ..Shot::flat(f64::from(deg) + 3.0) };
+                let c = shoot(&pattern, &shot, 0.2, deg as u64);
+                let g = find(&c, &pattern).unwrap_or_else(|m| panic!("{rows}x{cols} at {deg}°: {m}"));
+                assert_eq!(g.points.len(), pattern.len());
+                check(&g, &c);
+            }
+        }
+    }
+
+    #[test]
+    fn even_columns_take_the_labelling_whose_x_axis_points_right() {
+        let pattern = Pattern::new(4, 10, 0.024).unwrap();
+        for deg in (0..360).step_by(15) {
+            let shot = Shot::flat(f64::from(deg) + 2.0);
+            let c = shoot(&pattern, &shot, 0.1, 7);
+            let g = find(&c, &pattern).unwrap_or_else(|m| panic!("{deg}°: {m}"));
+            assert_eq!(g.points.len(), 40);
+            let at = |i: usize| g.points.iter().find(|p| p.index == i).unwrap().image;
+            // Board x runs from index 0 (i = 0) to the last column.
+            let x_axis = [at(36)[0] - at(0)[0], at(36)[1] - at(0)[1]];
+            let horizontal = x_axis[0].abs() > x_axis[1].abs() * 1f64.to_radians().tan();
+            assert!(if horizontal { x_axis[0] > 0.0 } else { x_axis[1] > 0.0 }, "{deg}°: x axis {x_axis:?}");
+            // Either labelling is the board's, or its half turn.
+            let truth =
+                c.iter().map(|(c, i)| (*c, i.map(|i| if x_axis == x_axis { i } else { 0 }))).collect::<Vec<_>>();
+            let half_turn = |i: usize| (pattern.cols - 1 - i / 4) * 4 + (3 - i % 4);
+            let direct = g
+                .points
+                .iter()
+                .all(|p| truth.iter().any(|(c, i)| *i == Some(p.index) && (f64::from(c.u) - p.image[0]).abs() < 1e-3));
+            let turned = g.points.iter().all(|p| {
+                truth.iter().any(|(c, i)| *i == Some(half_turn(p.index)) && (f64::from(c.u) - p.image[0]).abs() < 1e-3)
+            });
+            assert!(direct || turned, "{deg}°");
+        }
+    }
+
+    #[test]
+    fn perspective_and_distortion() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        for (k, (tx, ty, k1)) in
+            [(0.6, 0.0, 0.0), (0.0, 0.7, 0.0), (-0.5, 0.5, -0.3), (0.4, -0.6, -0.35), (0.0, 0.0, 0.2)]
+                .into_iter()
+                .enumerate()
+        {
+            let shot = Shot { tilt_x: tx, tilt_y: ty, k1, ..Shot::flat(25.0 * k as f64) };
+            let c = shoot(&pattern, &shot, 0.3, k as u64);
+            let g = find(&c, &pattern).unwrap_or_else(|m| panic!("shot {k}: {m}"));
+            assert_eq!(g.points.len(), 44);
+            check(&g, &c);
+        }
+    }
+
+    #[test]
+    fn missing_circles_and_clutter_beside_the_grid() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        let shot = Shot::flat(20.0);
+        let mut c = shoot(&pattern, &shot, 0.2, 3);
+        // Five circles lost (a circle moving along its own edge fires few events).
+        for k in [5, 12, 21, 30, 38] {
+            c.retain(|x| x.1 != Some(k));
+        }
+        let s = pattern.spacing;
+        let r = c[0].0.r as f64;
+        // Marks printed beside the grid, nearly where a next row would be; blobs around.
+        for (x, y) in [(9.1 * s, -0.8 * s), (10.7 * s, -0.8 * s)] {
+            c.push((centre(shot.project(&pattern, x, y).0, r * 0.9), None));
+        }
+        for k in 0..25 {
+            let a = k as f64 * 2.4;
+            c.push((
+                centre([173.0 + 160.0 * a.cos(), 130.0 + 125.0 * a.sin()], r * (0.6 + 0.1 * (k % 9) as f64)),
+                None,
+            ));
+        }
+        let c = in_view(&c);
+        let g = find(&c, &pattern).unwrap_or_else(|m| panic!("{m}"));
+        assert_eq!(g.points.len(), 39);
+        check(&g, &c);
+    }
+
+    #[test]
+    fn a_second_partial_grid_is_not_taken_for_the_grid() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        let shot = Shot { distance: 1.1, ..Shot::flat(0.0) };
+        let c = shoot(&pattern, &shot, 0.1, 4);
+        // Another print of a 3x5 piece of the pattern at the same scale, to the right.
+        let piece: Vec<_> = c
+            .iter()
+            .filter(|(_, i)| i.is_some_and(|i| i / 4 < 5 && i % 4 < 3))
+            .map(|(p, _)| (CenterRecord { u: p.u + 200.0, ..*p }, None))
+            .collect();
+        let mut all = c.clone();
+        all.extend(piece);
+        let all = in_view(&all);
+        match find(&all, &pattern) {
+            Ok(g) => check(&g, &all),
+            Err(m) => panic!("grid beside a second partial grid: {m}"),
+        }
+        // Only the piece: too small to be the grid.
+        let piece_only: Vec<_> = all.iter().filter(|x| x.1.is_none()).copied().collect();
+        assert!(find(&piece_only, &pattern).is_err());
+    }
+
+    #[test]
+    fn mirrored_views() {
+        // With odd COLS the pattern is its own mirror image (column i ↔ COLS−1−i): a mirrored
+        // view is a view of the board from the front, labelled as such. With even COLS no
+        // labelling keeps the board's front to the camera: a miss.
+        for deg in [0.0, 40.0, 130.0, 250.0] {
+            let odd = Pattern::new(4, 11, 0.024).unwrap();
+            let c = shoot(&odd, &Shot::flat(deg), 0.1, 5);
+            let mirrored: Vec<_> = c
+                .iter()
+                .map(|(p, i)| (CenterRecord { u: SIZE[0] as f32 - p.u, ..*p }, i.map(|i| (10 - i / 4) * 4 + i % 4)))
+                .collect();
+            let g = find(&mirrored, &odd).unwrap_or_else(|m| panic!("{deg}°: {m}"));
+            check(&g, &mirrored);
+            let even = Pattern::new(4, 10, 0.024).unwrap();
+            let c = shoot(&even, &Shot::flat(deg), 0.1, 5);
+            let mirrored: Vec<_> =
+                c.iter().map(|(p, i)| (CenterRecord { u: SIZE[0] as f32 - p.u, ..*p }, *i)).collect();
+            assert_eq!(find(&mirrored, &even).unwrap_err(), Miss::NoPlacement, "{deg}°");
+        }
+    }
+
+    #[test]
+    fn a_larger_grid_or_a_partial_view_is_not_labelled() {
+        let big = Pattern::new(4, 11, 0.024).unwrap();
+        let c = shoot(&big, &Shot::flat(10.0), 0.1, 6);
+        // The 4x11 grid is no 3x9 grid (it holds more than two strays around one).
+        assert!(find(&c, &Pattern::new(3, 9, 0.024).unwrap()).is_err());
+        // Two whole columns out of view: which columns are seen is not known.
+        let cut: Vec<_> = c.iter().filter(|(_, i)| i.is_some_and(|i| i / 4 >= 2)).copied().collect();
+        assert_eq!(find(&cut, &big).unwrap_err(), Miss::Ambiguous);
+    }
+
+    #[test]
+    fn bad_numbers_and_empty_input_are_misses() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        assert_eq!(find(&[], &pattern).unwrap_err(), Miss::TooFewCentres);
+        let mut c = shoot(&pattern, &Shot::flat(0.0), 0.1, 8);
+        for (k, x) in c.iter_mut().enumerate() {
+            match k % 4 {
+                0 => x.0.u = f32::NAN,
+                1 => x.0.r = f32::INFINITY,
+                2 => x.0.v = -1e30,
+                _ => {}
+            }
+        }
+        assert!(find(&c, &pattern).is_err());
+        let same = vec![(centre([10.0, 10.0], 3.0), None); 60];
+        assert!(find(&same, &pattern).is_err());
+    }
+
+    #[test]
+    fn pattern_text_and_points() {
+        let p = Pattern::parse("4x11", 0.024).unwrap();
+        assert_eq!((p.rows, p.cols, p.len()), (4, 11, 44));
+        let o = p.object_point(5);
+        assert!((o[0] - 0.024).abs() < 1e-12 && (o[1] - 0.072).abs() < 1e-12 && o[2] == 0.0);
+        assert!(Pattern::parse("4-11", 0.02).unwrap_err().contains("ROWSxCOLS"));
+        assert!(Pattern::parse("1x11", 0.02).is_err());
+        assert!(Pattern::new(4, 11, -1.0).is_err());
+        assert_eq!(p.picture().lines().next().unwrap(), "o   o   o   o   o   o");
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        /// Whatever the pose, clutter and losses: a grid found is labelled right.
+        #[test]
+        fn never_a_wrong_ordering(
+            roll in 0.0f64..360.0,
+            tilt_x in -0.7f64..0.7,
+            tilt_y in -0.7f64..0.7,
+            distance in 0.45f64..1.2,
+            k1 in -0.35f64..0.1,
+            lost in proptest::collection::vec(0usize..44, 0..10),
+            clutter in proptest::collection::vec((0.0f64..346.0, 0.0f64..260.0, 0.5f64..1.6), 0..40),
+            seed in 0u64..1000,
+        ) {
+            let pattern = Pattern::new(4, 11, 0.024).unwrap();
+            let shot = Shot { roll: roll.to_radians(), tilt_x, tilt_y, distance, k1 };
+            let mut c = shoot(&pattern, &shot, 0.3, seed);
+            c.retain(|x| !lost.contains(&x.1.unwrap_or(usize::MAX)));
+            let r = f64::from(c.first().map_or(4.0, |x| x.0.r));
+            c.extend(clutter.iter().map(|&(u, v, f)| (centre([u, v], r * f), None)));
+            let c = in_view(&c);
+            if let Ok(g) = find(&c, &pattern) {
+                check(&g, &c);
+            }
+        }
+    }
 }

@@ -174,6 +174,11 @@ impl std::error::Error for CalibError {}
 /// Most solves of the robust loop (each after setting views aside or reweighing points).
 const ROBUST_ROUNDS: usize = 30;
 
+/// Points of one view off by more than this (and 5 σ) are taken for points paired with
+/// the wrong board points, px: a wrong pairing moves a point by a grid spacing (several
+/// pixels), while centre errors stay within about a pixel.
+pub const MISLABEL_PX: f64 = 2.0;
+
 /// Fewest views a calibration accepts: Zhang's closed form needs three.
 pub const MIN_VIEWS: usize = 3;
 /// Fewest points a view needs to take part (a homography needs four, a pose with
@@ -297,13 +302,15 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         // median is 1.18 σ, and fewer than 1 in 10⁵ lie beyond 5 σ. First, views whose
         // median error is far above the others' go (a wrong ordering, blur): a grossly wrong
         // view bends the whole solution, so nothing finer is judged until they are gone.
-        // Then, with the solution clean: one point beyond 5 σ in a view is a stray (a blob
-        // merged with a circle) and is weighed down; more than one means the view's points
-        // are not what they claim, and it goes.
+        // Then, with the solution clean: a point beyond 5 σ in a view is a stray (a blob
+        // merged with a circle, a centre fitted to few events) and is weighed down; more than
+        // one beyond both 5 σ and MISLABEL_PX means the view's points are not what they claim
+        // (a point paired with the wrong board point is off by a whole spacing), and it goes.
+        // The floor keeps the heavy tail of real centre errors from costing whole views.
         let errors: Vec<Vec<f64>> = kept.iter().zip(&poses).map(|(&v, p)| residuals(&views[v], &k, p)).collect();
         let all: Vec<f64> = errors.iter().flatten().copied().collect();
         let sigma = (median_mad(&all).0 / 1.18).max(1e-9);
-        let far = 5.0 * sigma;
+        let far = (5.0 * sigma).max(MISLABEL_PX);
         let medians: Vec<f64> = errors.iter().map(|e| median_mad(e).0).collect();
         let (med, mad) = median_mad(&medians);
         let limit = (med + 5.0 * 1.4826 * mad).max(2.0 * med);
@@ -329,7 +336,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
                     (strays > 1).then(|| {
                         let worst = e.iter().copied().fold(0.0, f64::max);
                         format!(
-                            "{strays} of its {} points are off by more than {far:.2} px (5σ of all points; worst {worst:.2} px): points paired with the wrong board points?",
+                            "{strays} of its {} points are off by more than {far:.2} px (5σ of all points, at least {MISLABEL_PX} px; worst {worst:.2} px): points paired with the wrong board points?",
                             e.len()
                         )
                     })

@@ -1,12 +1,17 @@
-//! `evcal demo`: the main job on a built-in default.
+//! `evcal demo`: the main job on a built-in default, end to end with known truth.
 
-use crate::common::{run_simulation, truth_json, window_truths, write_json};
+use crate::calibrate::{export, find_views, report, solve};
+use crate::common::run_simulation;
 use anyhow::{Context, Result};
 use clap::Args;
-use evcal_core::{detect::DetectConfig, event::SensorSize, fit::FitMethod, window::WindowConfig};
+use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
+    calib::Intrinsics,
+    detections::WindowRecord,
     eval::{self, ScoreRules},
+    grid::Pattern,
     link::replay::replay_virtual,
+    pipeline::Setup,
     sim::{Light, SimConfig, Trajectory},
 };
 use std::{
@@ -16,7 +21,7 @@ use std::{
 
 #[derive(Args)]
 pub struct DemoArgs {
-    /// Simulated seconds.
+    /// Simulated seconds (a 4000-event window every 33 ms: 30 windows a second).
     #[arg(long, default_value_t = 3.0)]
     pub seconds: f64,
     /// Lighting.
@@ -25,83 +30,63 @@ pub struct DemoArgs {
     /// Output folder.
     #[arg(long, default_value = "evcal-out")]
     pub out: PathBuf,
+    /// No progress bars.
+    #[arg(long, short)]
+    pub quiet: bool,
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
-    let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, a.light, 1).expect("built-in preset");
+    let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, a.light, 1).context("built-in preset")?;
     let c = cfg.camera;
-    println!("evcal demo: a simulated DAVIS346 ({}x{}) sweeps a 4x11 asymmetric circle grid (24 mm), {} light, cone motion, {:.1} s", c.width, c.height, a.light.name(), a.seconds);
+    let truth = Intrinsics { fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, k1: c.k1, k2: c.k2, p1: c.p1, p2: c.p2, k3: c.k3 };
+    let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).map_err(anyhow::Error::msg)?;
     println!(
-        "  true intrinsics: fx {:.2} fy {:.2} cx {:.2} cy {:.2}  k1 {:+.3} k2 {:+.3} p1 {:+.4} p2 {:+.4}",
-        c.fx, c.fy, c.cx, c.cy, c.k1, c.k2, c.p1, c.p2
+        "evcal demo: a simulated DAVIS346 ({}x{}) sweeps a {}x{} asymmetric circle grid ({} mm) in front of a cluttered wall, {} light, cone motion, {:.1} s",
+        c.width,
+        c.height,
+        pattern.rows,
+        pattern.cols,
+        pattern.spacing * 1e3,
+        a.light.name(),
+        a.seconds
     );
-    let (events, sim) = run_simulation(cfg, a.seconds, false)?;
-    println!("  simulated {} events ({:.2} M events/s)", events.len(), events.len() as f64 / a.seconds / 1e6);
-    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    let (events, sim) = run_simulation(cfg, a.seconds, a.quiet)?;
+    println!("simulated {} events ({:.2} M events/s)", events.len(), events.len() as f64 / a.seconds / 1e6);
+
+    // Every window goes through the firmware's protocol loop, the wire encoder and the
+    // host's decoder, exactly as from a device.
     let det = DetectConfig::new(SensorSize { width: c.width, height: c.height });
-    let path = a.out.join("detections.jsonl");
-    let mut out =
-        BufWriter::new(std::fs::File::create(&path).with_context(|| format!("cannot create {}", path.display()))?);
+    let (windows, link) = replay_virtual(&events, det).context("replaying through the virtual device")?;
+    let mut score = eval::Score::default();
     let rules = ScoreRules::default();
-    let mut scores = Vec::new();
-    let mut link_report = None;
-    for method in [FitMethod::Centroid, FitMethod::Ols, FitMethod::Erwls] {
-        let mut d = det;
-        d.fit.method = method;
-        let started = std::time::Instant::now();
-        let mut s = eval::Score::default();
-        let mut windows = 0u64;
-        let mut write_err = None;
-        if method == FitMethod::Erwls {
-            // The method evcal uses runs exactly as on a device: every window through the
-            // firmware's protocol loop, the wire encoder and the host's decoder.
-            let (records, link) = replay_virtual(&events, d).context("replaying through the virtual device")?;
-            for w in &records {
-                windows += 1;
-                s.add(w, &eval::true_circles(&sim.truth_at(w.t_ref_us)), &rules);
-                if write_err.is_none() {
-                    write_err = writeln!(out, "{}", w.to_json_line()).err();
-                }
-            }
-            link_report = Some(link);
-        } else {
-            eval::detect_with_truth(&events, &sim, d, |w, t| {
-                windows += 1;
-                s.add(w, &eval::true_circles(t), &rules);
-            });
-        }
-        if let Some(e) = write_err {
-            return Err(e).context("writing detections");
-        }
-        scores.push((method, s, started.elapsed().as_secs_f64() / windows.max(1) as f64));
+    for w in &windows {
+        score.add(w, &eval::true_circles(&sim.truth_at(w.t_ref_us)), &rules);
     }
-    out.flush().context("writing detections")?;
-    let window = WindowConfig::default();
-    write_json(&a.out.join("truth.json"), &truth_json(&sim, &window_truths(&events, &sim, window)))?;
     println!(
-        "  detection core, {} windows of {} events (circles wholly in view, radius >= {} px):",
-        scores[0].1.windows, window.events, rules.min_radius_px
+        "detection core on the virtual device: {} windows of {} events, {:.0} bytes/window over the link; circles wholly in view found {:.1} %, centre RMS {:.3} px against the truth",
+        link.windows,
+        det.window.events,
+        link.bytes_received as f64 / link.windows.max(1) as f64,
+        100.0 * score.found_rate(),
+        score.rms_px()
     );
-    println!("    {:<9} {:>8} {:>14} {:>12}", "fit", "found", "centre RMS px", "max px");
-    for (m, s, _) in &scores {
-        println!(
-            "    {:<9} {:>7.1}% {:>14.3} {:>12.2}",
-            format!("{m:?}"),
-            100.0 * s.found_rate(),
-            s.rms_px(),
-            s.max_error_px
-        );
-    }
-    if let Some(l) = &link_report {
-        println!(
-            "  link (eRWLS run, through the device loop and wire codec): {} windows received, {} lost; {:.0} bytes/window back, {:.2} bytes/event replayed in",
-            l.windows,
-            l.windows_lost,
-            l.bytes_received as f64 / l.windows.max(1) as f64,
-            l.bytes_sent as f64 / l.events_sent.max(1) as f64
-        );
-    }
-    println!("  (per-stage core timings: cargo bench -p evcal-host --bench core)");
-    println!("  wrote {} and {}", path.display(), a.out.join("truth.json").display());
+    std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the directory", a.out.display()))?;
+    write_detections(&a.out.join("detections.jsonl"), &windows)?;
+
+    let setup = Setup::new(pattern, [u32::from(c.width), u32::from(c.height)]);
+    let views = find_views(&windows, &setup, a.quiet);
+    let outcome = solve(&views, &setup)?;
+    report(&views, &outcome, &setup, Some(&truth));
+    export(&views, &outcome, &a.out, None)?;
+    println!("  {}", a.out.join("detections.jsonl").display());
     Ok(())
+}
+
+fn write_detections(path: &std::path::Path, windows: &[WindowRecord]) -> Result<()> {
+    let mut out =
+        BufWriter::new(std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?);
+    for w in windows {
+        writeln!(out, "{}", w.to_json_line()).with_context(|| format!("{}: cannot write", path.display()))?;
+    }
+    out.flush().with_context(|| format!("{}: cannot write", path.display()))
 }

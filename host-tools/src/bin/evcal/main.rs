@@ -2,6 +2,7 @@
 //!
 //! One module per command; `common` holds what several commands share.
 
+mod calibrate;
 mod collect;
 mod common;
 mod demo;
@@ -25,7 +26,8 @@ on the pixel grid), and each circle's slanted cylinder in (x, y, t) is fitted by
 the sensor and here on the host.",
     after_help = "Examples:\n  evcal simulate --sensor davis346 --pattern 4x11 --seconds 5 --out rec.txt\n  \
 evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  \
-evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  evcal demo"
+evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  \
+evcal calibrate detections.jsonl --sensor 346x260 --pattern 4x11 --spacing 0.024\n  evcal demo"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -38,7 +40,7 @@ enum Command {
     ///
     /// Output lines: {"seq", "t_ref_us", "events", "noise", "centers": [{"u", "v", "r",
     /// "spread", "n", "converged"}]}. Centres are in pixels at the window's reference time
-    /// (its first event), with (0,0) the centre of the top-left pixel.
+    /// (the middle of its events' span), with (0,0) the centre of the top-left pixel.
     Detect(detect::DetectArgs),
     /// Simulate an event camera sweeping a circle grid; write the recording and truth.json.
     ///
@@ -48,12 +50,36 @@ enum Command {
     /// --step-ms) the pose and each circle's true image centre at the window's t_ref: the
     /// projected ellipse's centre and the projection of the circle's centre.
     Simulate(simulate::SimulateArgs),
-    /// The main job on a built-in default: simulate a DAVIS346 sweeping a 4x11 grid, run every
-    /// window through the detection core, and score the centres against the truth.
+    /// The main job on a built-in default: simulate a DAVIS346 with known intrinsics sweeping
+    /// a 4x11 grid, run every window through the detection core on a virtual device (its
+    /// protocol loop and the wire codec), find the grid, calibrate, and print the result beside
+    /// the truth.
     ///
-    /// Writes ./evcal-out/detections.jsonl and ./evcal-out/truth.json. (Grid finding and the
-    /// intrinsic solve join this command when they land.)
+    /// Writes into --out (./evcal-out): calibration.json, opencv.yaml, camera_info.yaml,
+    /// kalibr_camchain.yaml, report.png (as `evcal calibrate`) and detections.jsonl.
     Demo(demo::DemoArgs),
+    /// Calibrate from a recording (the detection core runs over it first) or from detections
+    /// collected earlier (JSON lines from `evcal detect`, `replay` or `collect`).
+    ///
+    /// Finds the grid in every window, keeps well-spread views (consecutive windows are
+    /// near-duplicates), solves fx, fy, cx, cy and k1, k2, p1, p2, k3 (OpenCV's model) with
+    /// the views' poses, sets aside views that do not fit (each with its reason), and says what
+    /// the views leave uncovered. Writes into --out:
+    ///   calibration.json      the result for programs: fx, fy, cx, cy, k1, k2, p1, p2, k3,
+    ///                         rms_px, views_used, windows, detections, per_view, ...
+    ///   opencv.yaml           cv::FileStorage: camera_matrix, distortion_coefficients,
+    ///                         image_width, image_height
+    ///   camera_info.yaml      ROS camera_info (as camera_calibration_parsers writes it)
+    ///   kalibr_camchain.yaml  Kalibr: pinhole + radtan (no k3: solved with k3 = 0 when k3
+    ///                         matters, and said so)
+    ///   report.png            per-view error, residuals, sensor coverage, detections over time
+    #[command(
+        verbatim_doc_comment,
+        after_help = "Examples:\n  evcal calibrate rec.h5 --pattern 4x11 --spacing 0.024\n  \
+evcal calibrate detections.jsonl --sensor 346x260 --pattern 3x9 --spacing 0.027 --out cam0 --json cam0.json\n  \
+evcal calibrate rec.txt --sensor davis346 --pattern 4x11 --spacing 0.024 --fix-k3"
+    )]
+    Calibrate(calibrate::CalibrateArgs),
     /// What a recording holds: format, sensor size, events, time span, event rate over time,
     /// polarity balance, and what the reader skipped or assumed.
     ///
@@ -94,6 +120,7 @@ fn main() {
         Command::Detect(a) => detect::run(a),
         Command::Simulate(a) => simulate::run(a),
         Command::Demo(a) => demo::run(a),
+        Command::Calibrate(a) => calibrate::run(a),
         Command::Info(a) => info::run(a),
         Command::Replay(a) => replay::run(a),
         Command::Collect(a) => collect::run(a),

@@ -1,0 +1,281 @@
+//! `evcal calibrate`: from a recording or collected detections to intrinsics and the files
+//! users paste into their stack.
+
+use crate::common::{progress_bar, resolve_sensor, CoreArgs, ReadArgs};
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use evcal_host::{
+    calib::{Intrinsics, PARAMETER_NAMES},
+    detections::{self, WindowRecord},
+    export::{write_all, Export},
+    grid::Pattern,
+    pipeline::{calibrate_views, views_from_windows, Outcome, Setup, Views},
+    recording::parse_sensor,
+};
+use std::path::{Path, PathBuf};
+
+#[derive(Args)]
+pub struct CalibrateArgs {
+    /// A recording (text `t x y p`, AEDAT4, ROS1 bag, HDF5: the detection core runs over it
+    /// first) or detections collected earlier (`.jsonl`, as `evcal detect`, `replay` and
+    /// `collect` write them).
+    pub input: PathBuf,
+    #[command(flatten)]
+    pub read: ReadArgs,
+    #[command(flatten)]
+    pub core: CoreArgs,
+    #[command(flatten)]
+    pub target: TargetArgs,
+    #[command(flatten)]
+    pub solve: SolveArgs,
+    /// Folder for the outputs: calibration.json, opencv.yaml, camera_info.yaml,
+    /// kalibr_camchain.yaml, report.png.
+    #[arg(long, default_value = "evcal-out")]
+    pub out: PathBuf,
+    /// Also write the JSON result here (the same as calibration.json in --out).
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// No progress bars or notes on standard error.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// The target as printed.
+#[derive(Args, Clone)]
+pub struct TargetArgs {
+    /// The asymmetric circle grid, ROWSxCOLS: circles per column x columns (E-Calib's and
+    /// OpenCV's convention; 4x11 is OpenCV's acircles pattern). The layout is echoed; compare
+    /// it with the board.
+    #[arg(long, value_name = "ROWSxCOLS")]
+    pub pattern: String,
+    /// Spacing S in metres: circles in one column are 2·S apart, neighbouring columns S
+    /// apart (offset by S vertically). The focal length does not depend on it; the poses do.
+    #[arg(long, value_name = "METRES")]
+    pub spacing: f64,
+}
+
+/// What the solve may change.
+#[derive(Args, Clone)]
+pub struct SolveArgs {
+    /// Keep k3 at 0 (a lens with little distortion; Kalibr's radtan has no k3).
+    #[arg(long)]
+    pub fix_k3: bool,
+    /// Keep p1 = p2 = 0.
+    #[arg(long)]
+    pub zero_tangential: bool,
+    /// Keep fy/fx at 1 (square pixels).
+    #[arg(long)]
+    pub fix_aspect_ratio: bool,
+    /// Plain least squares, as OpenCV: no down-weighting of stray points, no views set aside.
+    #[arg(long)]
+    pub no_robust: bool,
+    /// A view is kept only if its points moved at least this far (RMS, px) from every kept
+    /// view: consecutive windows are near-duplicates.
+    #[arg(long, default_value_t = 2.0, value_name = "PX")]
+    pub min_change_px: f64,
+    /// Most views solved from (evenly thinned beyond it).
+    #[arg(long, default_value_t = 500)]
+    pub max_views: usize,
+}
+
+impl SolveArgs {
+    /// The run's setup for `pattern` on a sensor of `size`.
+    pub fn setup(&self, pattern: Pattern, size: [u32; 2]) -> Result<Setup> {
+        if !(self.min_change_px.is_finite() && self.min_change_px >= 0.0) {
+            bail!("--min-change-px must be a non-negative number of pixels");
+        }
+        if self.max_views < evcal_host::calib::MIN_VIEWS {
+            bail!("--max-views must be at least {}", evcal_host::calib::MIN_VIEWS);
+        }
+        let mut s = Setup::new(pattern, size);
+        s.calib.fix_k3 = self.fix_k3;
+        s.calib.zero_tangential = self.zero_tangential;
+        s.calib.fix_aspect_ratio = self.fix_aspect_ratio;
+        s.calib.robust = !self.no_robust;
+        s.select.min_change_px = self.min_change_px;
+        s.select.max_views = self.max_views;
+        Ok(s)
+    }
+}
+
+/// Whether `path` holds detections (JSON lines) rather than events.
+fn is_detections(path: &Path) -> Result<bool> {
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    if matches!(ext.as_str(), "jsonl" | "ndjson") {
+        return Ok(true);
+    }
+    if ext == "json" {
+        return Ok(true);
+    }
+    // Otherwise sniff: a detections file starts with '{'.
+    use std::io::Read;
+    let mut head = [0u8; 64];
+    let n = std::fs::File::open(path)
+        .with_context(|| format!("{}: cannot open", path.display()))?
+        .read(&mut head)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    Ok(head[..n].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
+}
+
+pub fn run(a: CalibrateArgs) -> Result<()> {
+    let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
+    let (windows, size) = if is_detections(&a.input)? {
+        let Some(s) = a.core.sensor.as_deref() else {
+            bail!(
+                "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
+                a.input.display()
+            )
+        };
+        let sensor = parse_sensor(s).map_err(anyhow::Error::msg)?;
+        let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
+        let w = detections::read_jsonl(std::io::BufReader::new(f)).with_context(|| a.input.display().to_string())?;
+        (w, sensor)
+    } else {
+        detect(&a)?
+    };
+    if windows.is_empty() {
+        bail!("{}: no detection windows (an empty file, or fewer events than one window holds)", a.input.display());
+    }
+    let setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
+    if !a.quiet {
+        eprintln!(
+            "evcal: target {}x{} asymmetric circle grid, spacing {} m, as seen from the front:\n{}",
+            pattern.rows,
+            pattern.cols,
+            pattern.spacing,
+            indent(&pattern.picture())
+        );
+    }
+    let views = find_views(&windows, &setup, a.quiet);
+    let outcome = solve(&views, &setup)?;
+    report(&views, &outcome, &setup, None);
+    export(&views, &outcome, &a.out, a.json.as_deref())?;
+    Ok(())
+}
+
+fn indent(s: &str) -> String {
+    s.lines().map(|l| format!("    {l}")).collect::<Vec<_>>().join("\n")
+}
+
+/// Runs the detection core over the recording.
+fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
+    let rec = a.read.open(&a.input, a.quiet)?;
+    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.input, &rec, &a.read.options(), a.quiet)?;
+    let cfg = a.core.config(sensor)?;
+    let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
+    let mut rec = rec;
+    let progress = std::cell::Cell::new(0u64);
+    let mut counter = 0u64;
+    let events = std::iter::from_fn(|| {
+        let e = rec.next();
+        counter += 1;
+        if counter % 65_536 == 0 {
+            progress.set(rec.progress_bytes());
+        }
+        e
+    });
+    let mut windows = Vec::new();
+    let summary = detections::run(events, cfg, |d| {
+        pb.set_position(progress.get());
+        pb.set_prefix(format!("windows {}", d.info.seq + 1));
+        windows.push(WindowRecord::from_detection(d));
+    })
+    .with_context(|| a.input.display().to_string())?;
+    pb.finish_and_clear();
+    if !a.quiet {
+        eprintln!("evcal: {} events, {} windows, {} centres", summary.events_read, summary.windows, summary.centres);
+    }
+    Ok((windows, sensor))
+}
+
+/// The grid in every window, with a progress bar.
+pub fn find_views(windows: &[WindowRecord], setup: &Setup, quiet: bool) -> Views {
+    let pb = progress_bar(windows.len() as u64, quiet, "finding grid");
+    let views = views_from_windows(windows, setup, &|n| pb.set_position(n as u64));
+    pb.finish_and_clear();
+    views
+}
+
+/// Chooses views and solves.
+pub fn solve(views: &Views, setup: &Setup) -> Result<Outcome> {
+    Ok(calibrate_views(views, setup)?)
+}
+
+/// Prints the result for people; beside `truth` when known.
+pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsics>) {
+    let c = &o.calibration;
+    println!("{}", views.stats.summary());
+    println!("{}", o.selection.summary(&setup.select));
+    for r in &c.rejected {
+        println!(
+            "  view {} (window {}) set aside: {}",
+            r.view,
+            o.used_origins.get(r.view).map_or(0, |v| v.window_seq),
+            r.reason
+        );
+    }
+    if c.down_weighted_points > 0 {
+        println!("  {} stray points down-weighted", c.down_weighted_points);
+    }
+    println!(
+        "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
+        c.rms_px,
+        c.views.len(),
+        c.views.iter().map(|v| v.points).sum::<usize>(),
+        c.mean_view_px,
+        c.median_view_px
+    );
+    let est = c.intrinsics.to_array();
+    match truth {
+        Some(t) => {
+            let t = t.to_array();
+            println!("  {:<4} {:>12} {:>10} {:>12} {:>12}", "", "estimate", "± 1σ", "truth", "error");
+            for i in 0..9 {
+                let err = est[i] - t[i];
+                let rel = if i < 2 { format!(" ({:+.3} %)", 100.0 * err / t[i]) } else { String::new() };
+                println!(
+                    "  {:<4} {:>12.5} {:>10.5} {:>12.5} {:>+12.5}{rel}",
+                    PARAMETER_NAMES[i], est[i], c.std_dev[i], t[i], err
+                );
+            }
+        }
+        None => {
+            println!("  {:<4} {:>12} {:>10}", "", "estimate", "± 1σ");
+            for i in 0..9 {
+                println!("  {:<4} {:>12.5} {:>10.5}", PARAMETER_NAMES[i], est[i], c.std_dev[i]);
+            }
+        }
+    }
+    println!(
+        "coverage of the sensor by the points used ({:.0} % of cells):\n{}",
+        100.0 * o.coverage.covered,
+        indent(&o.coverage.picture())
+    );
+    for w in c.warnings.iter().chain(&o.advice) {
+        println!("warning: {w}");
+    }
+}
+
+/// Writes every output into `dir`, and the JSON result to `json` too.
+pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<()> {
+    let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
+    e.kalibr_calibration = o.without_k3.as_ref();
+    let written = write_all(dir, &e)?;
+    if o.without_k3.is_some() {
+        println!(
+            "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
+        );
+    }
+    for w in &written.warnings {
+        println!("warning: {w}");
+    }
+    if let Some(j) = json {
+        std::fs::copy(&written.paths[0], j)
+            .with_context(|| format!("{}: cannot write the JSON result", j.display()))?;
+    }
+    println!("wrote:");
+    for p in written.paths.iter().map(|p| p.display().to_string()).chain(json.map(|j| j.display().to_string())) {
+        println!("  {p}");
+    }
+    Ok(())
+}

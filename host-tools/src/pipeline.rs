@@ -1,0 +1,303 @@
+//! From detection windows to a calibration: the grid in each window, views, the views
+//! chosen, the solve, and what the coverage says about it.
+//!
+//! Data flows one way: [`views_from_windows`] turns windows into views (with the grid
+//! finder's tally), [`calibrate_views`] chooses among them and solves. `evcal calibrate`,
+//! `evcal demo` and the end-to-end tests all go through here.
+
+use crate::calib::{self, CalibError, Calibration, View};
+use crate::detections::WindowRecord;
+use crate::export::{k3_displacement_px, ViewOrigin, WindowSample, K3_NEGLIGIBLE_PX};
+use crate::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
+use crate::select::{advice, select_views, Coverage, SelectOptions, Selection};
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// What the run is told: the target, the sensor, and how each step behaves.
+#[derive(Debug, Clone)]
+pub struct Setup {
+    /// The target.
+    pub pattern: Pattern,
+    /// Sensor width and height, px.
+    pub image_size: [u32; 2],
+    /// What the grid finder accepts.
+    pub find: FindOptions,
+    /// How views are chosen.
+    pub select: SelectOptions,
+    /// What the solve may change.
+    pub calib: calib::Options,
+    /// A circle whose fitted outline comes closer than this to the sensor's border is left
+    /// out of its view, px: the sensor cut its arc, and a fit to part of a ring is biased.
+    pub edge_margin_px: f64,
+}
+
+impl Setup {
+    /// Defaults for `pattern` on a sensor of `image_size`.
+    pub fn new(pattern: Pattern, image_size: [u32; 2]) -> Self {
+        Self {
+            pattern,
+            image_size,
+            find: FindOptions::default(),
+            select: SelectOptions::default(),
+            calib: calib::Options::default(),
+            edge_margin_px: 1.0,
+        }
+    }
+}
+
+/// How the grid finder fared over the windows.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GridStats {
+    /// Windows looked at.
+    pub windows: usize,
+    /// Windows in which the grid was found.
+    pub found: usize,
+    /// Windows without a grid, by reason.
+    pub misses: BTreeMap<Miss, usize>,
+    /// Grid points left out because their circle touched the sensor's border.
+    pub points_at_edge: usize,
+    /// Grids found that kept too few points once those were left out.
+    pub too_few_after_edge: usize,
+}
+
+impl GridStats {
+    /// One line for users: found in how many windows, and why not in the rest.
+    pub fn summary(&self) -> String {
+        let mut s = format!("grid found in {} of {} windows", self.found, self.windows);
+        if !self.misses.is_empty() {
+            let why: Vec<String> = self.misses.iter().map(|(m, n)| format!("{n} {m}")).collect();
+            s += &format!(" (not found: {})", why.join(", "));
+        }
+        if self.points_at_edge > 0 {
+            s += &format!("; {} points at the sensor's border left out", self.points_at_edge);
+        }
+        s
+    }
+}
+
+/// The views a run's windows give.
+#[derive(Debug, Clone, Default)]
+pub struct Views {
+    /// One view per window whose grid was found, in window order.
+    pub views: Vec<View>,
+    /// Where each view came from.
+    pub origins: Vec<ViewOrigin>,
+    /// Every window, for the report's timeline.
+    pub timeline: Vec<WindowSample>,
+    /// The grid finder's tally.
+    pub stats: GridStats,
+}
+
+/// The grid of one window as a view, with points at the sensor's border left out; also
+/// how many were.
+pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, usize) {
+    let [w, h] = setup.image_size.map(f64::from);
+    let m = setup.edge_margin_px;
+    let mut view = View { object: Vec::with_capacity(grid.points.len()), image: Vec::with_capacity(grid.points.len()) };
+    let mut at_edge = 0;
+    for p in &grid.points {
+        let [u, v] = p.image;
+        let r = p.radius_px + m;
+        // Pixel centres run from 0 to size − 1; the sensor's border is half a pixel out.
+        if u - r < -0.5 || v - r < -0.5 || u + r > w - 0.5 || v + r > h - 0.5 {
+            at_edge += 1;
+            continue;
+        }
+        view.object.push(setup.pattern.object_point(p.index));
+        view.image.push(p.image);
+    }
+    (view, at_edge)
+}
+
+/// Finds the grid in every window and makes views of it. `progress` is called with the
+/// number of windows done so far (from one thread at a time, in no fixed order of calls).
+pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(dyn Fn(usize) + Sync)) -> Views {
+    // Windows are independent: split them over the cores; each result lands at its index.
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(8);
+    let chunk = windows.len().div_ceil(threads).max(1);
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let found: Vec<Result<GridDetection, Miss>> = std::thread::scope(|s| {
+        let handles: Vec<_> = windows
+            .chunks(chunk)
+            .map(|part| {
+                let done = &done;
+                s.spawn(move || {
+                    part.iter()
+                        .map(|w| {
+                            let r = find_grid(&w.centers, &setup.pattern, &setup.find);
+                            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
+                            r
+                        })
+                        .collect::<Vec<_>>()
+                })
+            })
+            .collect();
+        handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
+    });
+    let t0 = windows.first().map_or(0, |w| w.t_ref_us);
+    let mut out = Views::default();
+    out.stats.windows = windows.len();
+    let needed = calib::MIN_POINTS_PER_VIEW;
+    for (w, r) in windows.iter().zip(found) {
+        let t_s = w.t_ref_us.saturating_sub(t0) as f64 * 1e-6;
+        let grid_found = match r {
+            Ok(g) => {
+                out.stats.found += 1;
+                let (view, at_edge) = view_of(&g, setup);
+                out.stats.points_at_edge += at_edge;
+                if view.object.len() >= needed {
+                    out.views.push(view);
+                    out.origins.push(ViewOrigin { window_seq: u64::from(w.seq), t_s });
+                } else {
+                    out.stats.too_few_after_edge += 1;
+                }
+                true
+            }
+            Err(m) => {
+                *out.stats.misses.entry(m).or_default() += 1;
+                false
+            }
+        };
+        out.timeline.push(WindowSample { t_s, centres: w.centers.len(), grid_found });
+    }
+    out
+}
+
+/// A calibration and what stands behind it.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// The views chosen (indices into the views offered) and why the others were not.
+    pub selection: Selection,
+    /// The chosen views, in the order the solver saw them.
+    pub used: Vec<View>,
+    /// Where each chosen view came from.
+    pub used_origins: Vec<ViewOrigin>,
+    /// The solve.
+    pub calibration: Calibration,
+    /// The same views solved with k3 fixed at 0, for exports whose model has no k3
+    /// (Kalibr's radtan), when k3 is not negligible; `None` otherwise.
+    pub without_k3: Option<Calibration>,
+    /// Where on the sensor the chosen views' points fell.
+    pub coverage: Coverage,
+    /// What the user should know about the views, and what motion would help.
+    pub advice: Vec<String>,
+}
+
+/// Why no calibration came out.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PipelineError {
+    /// No window held the grid.
+    NoGrid(GridStats),
+    /// The solve failed.
+    Calib(CalibError),
+}
+
+impl fmt::Display for PipelineError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PipelineError::NoGrid(s) if s.windows == 0 => write!(f, "no detection windows to look for the grid in"),
+            PipelineError::NoGrid(s) => write!(
+                f,
+                "{}: check --pattern (ROWSxCOLS as the board is printed) and that the board is in view",
+                s.summary()
+            ),
+            PipelineError::Calib(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for PipelineError {}
+
+/// Chooses among `views` and solves.
+pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, PipelineError> {
+    if views.views.is_empty() {
+        return Err(PipelineError::NoGrid(views.stats.clone()));
+    }
+    let selection = select_views(&views.views, &setup.select);
+    let used: Vec<View> = selection.chosen.iter().map(|&i| views.views[i].clone()).collect();
+    let used_origins: Vec<ViewOrigin> = selection.chosen.iter().map(|&i| views.origins[i]).collect();
+    let calibration = calib::calibrate(&used, setup.image_size, &setup.calib).map_err(PipelineError::Calib)?;
+    let without_k3 =
+        if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
+            let opts = calib::Options { fix_k3: true, ..setup.calib.clone() };
+            calib::calibrate(&used, setup.image_size, &opts).ok()
+        } else {
+            None
+        };
+    let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
+    let coverage = Coverage::of(&kept, setup.image_size);
+    let advice = advice(&calibration, &coverage);
+    Ok(Outcome { selection, used, used_origins, calibration, without_k3, coverage, advice })
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::detections::CenterRecord;
+
+    /// Windows whose centres are a pattern's circles seen head-on (plus one stray), moved a
+    /// little per window.
+    fn windows(pattern: &Pattern, n: usize) -> Vec<WindowRecord> {
+        (0..n)
+            .map(|k| {
+                let mut centers: Vec<CenterRecord> = (0..pattern.len())
+                    .map(|i| {
+                        let o = pattern.object_point(i);
+                        let s = 600.0 + 20.0 * k as f64;
+                        CenterRecord {
+                            u: (40.0 + 5.0 * k as f64 + s * o[0]) as f32,
+                            v: (30.0 + s * o[1]) as f32,
+                            r: 4.0,
+                            spread: 0.2,
+                            n: 60,
+                            converged: true,
+                        }
+                    })
+                    .collect();
+                centers.push(CenterRecord { u: 300.0, v: 240.0, r: 9.0, spread: 0.5, n: 30, converged: true });
+                WindowRecord { seq: k as u32, t_ref_us: 1000 * k as u64, events: 4000, noise: 100, centers }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn windows_become_views_in_order_with_their_origins() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        let setup = Setup::new(pattern, [346, 260]);
+        let w = windows(&pattern, 5);
+        let v = views_from_windows(&w, &setup, &|_| {});
+        assert_eq!(v.stats.windows, 5);
+        assert_eq!(v.stats.found, 5, "{}", v.stats.summary());
+        assert_eq!(v.views.len(), 5);
+        assert_eq!(v.timeline.len(), 5);
+        for (k, (view, origin)) in v.views.iter().zip(&v.origins).enumerate() {
+            assert_eq!(origin.window_seq, k as u64);
+            assert_eq!(view.object.len(), 44);
+            assert_eq!(view.object[0], [0.0, 0.0, 0.0]);
+        }
+    }
+
+    #[test]
+    fn points_at_the_border_are_left_out() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        // A sensor that cuts the grid's last column (x = 10 S at 600 px/m ≈ 184 px).
+        let setup = Setup::new(pattern, [186, 260]);
+        let v = views_from_windows(&windows(&pattern, 1), &setup, &|_| {});
+        assert_eq!(v.stats.found, 1);
+        assert_eq!(v.stats.points_at_edge, 4);
+        assert_eq!(v.views[0].object.len(), 40);
+        assert!(v.views[0].image.iter().all(|p| p[0] + 4.0 < 185.5));
+    }
+
+    #[test]
+    fn no_grid_is_an_error_that_says_why() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        let setup = Setup::new(Pattern::new(3, 9, 0.027).unwrap(), [346, 260]);
+        let v = views_from_windows(&windows(&pattern, 3), &setup, &|_| {});
+        let e = calibrate_views(&v, &setup).unwrap_err();
+        assert!(matches!(e, PipelineError::NoGrid(_)));
+        assert!(e.to_string().contains("grid found in 0 of 3 windows"), "{e}");
+        let none = calibrate_views(&Views::default(), &setup).unwrap_err();
+        assert!(none.to_string().contains("no detection windows"), "{none}");
+    }
+}

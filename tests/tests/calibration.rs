@@ -1,0 +1,186 @@
+//! End to end: simulated recordings (continuous event simulation, clutter, noise) through the
+//! detection core, the grid finder and the solver, against the simulator's truth.
+//!
+//! Two things are checked strictly: the grid finder never pairs a point with the wrong
+//! board point (zero wrong orderings, against the truth of every window), and every
+//! scenario gives a calibration. The accuracy figures are printed beside the targets
+//! (fx, fy within 0.1 %, cx, cy within 0.5 px, RMS ≤ 0.13 px in good light, grid found in
+//! ≥ 95 % of windows where it is wholly in view) and guarded with a margin against
+//! regressions. Not every target is met: the continuous simulation's events trail the moving
+//! edges (threshold crossings in a blurred edge), which biases the centres along the motion
+//! and fx by +0.1–0.2 % (with the true centres in the same views the solve is exact), and in
+//! 4000-event windows part of the grid often fires too few events to be found. The figures
+//! are in the closing note.
+
+use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_host::{
+    calib::Intrinsics,
+    detections::{self, WindowRecord},
+    eval::simulate,
+    grid::Pattern,
+    pipeline::{calibrate_views, views_from_windows, Setup},
+    sim::{FrameTruth, Light, SimConfig, Trajectory},
+};
+
+struct Case {
+    sensor: &'static str,
+    pattern: &'static str,
+    trajectory: Trajectory,
+    light: Light,
+    seconds: f64,
+}
+
+struct Figures {
+    fx_pct: f64,
+    fy_pct: f64,
+    cx_px: f64,
+    cy_px: f64,
+    rms_px: f64,
+    found_in_view: f64,
+    wrong_orderings: usize,
+    views: usize,
+}
+
+fn run(case: &Case) -> Figures {
+    let cfg = SimConfig::preset(case.sensor, case.pattern, case.trajectory, case.light, 5).unwrap();
+    let cam = cfg.camera;
+    let truth = Intrinsics {
+        fx: cam.fx,
+        fy: cam.fy,
+        cx: cam.cx,
+        cy: cam.cy,
+        k1: cam.k1,
+        k2: cam.k2,
+        p1: cam.p1,
+        p2: cam.p2,
+        k3: cam.k3,
+    };
+    let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).unwrap();
+    let (events, sim) = simulate(cfg, case.seconds);
+    let det = DetectConfig::new(SensorSize { width: cam.width, height: cam.height });
+    let mut windows = Vec::new();
+    detections::run(events.iter().map(|e| Ok(*e)), det, |d| windows.push(WindowRecord::from_detection(d))).unwrap();
+    let truths: Vec<FrameTruth> = windows.iter().map(|w| sim.truth_at(w.t_ref_us)).collect();
+
+    let setup = Setup::new(pattern, [u32::from(cam.width), u32::from(cam.height)]);
+    let views = views_from_windows(&windows, &setup, &|_| {});
+
+    // Every labelled point against the truth of its window: the nearest true circle must be
+    // the one it is paired with.
+    let mut wrong_orderings = 0;
+    let by_seq: std::collections::HashMap<u64, usize> =
+        windows.iter().enumerate().map(|(k, w)| (u64::from(w.seq), k)).collect();
+    for (view, origin) in views.views.iter().zip(&views.origins) {
+        let t = &truths[by_seq[&origin.window_seq]];
+        let wrong = view.object.iter().zip(&view.image).any(|(o, p)| {
+            let nearest = t
+                .circles
+                .iter()
+                .min_by(|a, b| {
+                    let d = |c: &[f64; 2]| (c[0] - p[0]).hypot(c[1] - p[1]);
+                    d(&a.ellipse_centre).total_cmp(&d(&b.ellipse_centre))
+                })
+                .unwrap();
+            pattern.object_point(nearest.index) != *o
+        });
+        wrong_orderings += usize::from(wrong);
+    }
+    // Found where the grid is wholly in view.
+    let in_view: Vec<bool> = truths.iter().map(|t| t.circles.iter().all(|c| c.in_view)).collect();
+    let found_seqs: std::collections::HashSet<u64> =
+        windows.iter().zip(&views.timeline).filter(|(_, s)| s.grid_found).map(|(w, _)| u64::from(w.seq)).collect();
+    let n_in_view = in_view.iter().filter(|&&b| b).count();
+    let found_in_view =
+        windows.iter().zip(&in_view).filter(|(w, &iv)| iv && found_seqs.contains(&u64::from(w.seq))).count() as f64
+            / n_in_view.max(1) as f64;
+
+    let outcome = calibrate_views(&views, &setup).unwrap_or_else(|e| panic!("{}: {e}", case.sensor));
+    let k = outcome.calibration.intrinsics;
+    let f = Figures {
+        fx_pct: 100.0 * (k.fx / truth.fx - 1.0),
+        fy_pct: 100.0 * (k.fy / truth.fy - 1.0),
+        cx_px: k.cx - truth.cx,
+        cy_px: k.cy - truth.cy,
+        rms_px: outcome.calibration.rms_px,
+        found_in_view,
+        wrong_orderings,
+        views: outcome.calibration.views.len(),
+    };
+    println!(
+        "{} {} {:?} {:?} {} s: {}; {} views used; fx {:+.3} % fy {:+.3} % (target ±0.1 %), cx {:+.2} cy {:+.2} px (±0.5), RMS {:.3} px (≤ 0.13 good light); found in {:.1} % of {} wholly-in-view windows (≥ 95 %); wrong orderings {}",
+        case.sensor,
+        case.pattern,
+        case.trajectory,
+        case.light,
+        case.seconds,
+        views.stats.summary(),
+        f.views,
+        f.fx_pct,
+        f.fy_pct,
+        f.cx_px,
+        f.cy_px,
+        f.rms_px,
+        100.0 * f.found_in_view,
+        n_in_view,
+        f.wrong_orderings
+    );
+    f
+}
+
+/// Guards: zero wrong orderings, and the accuracy within a margin of what is reached today.
+fn guard(f: &Figures, low_light: bool) {
+    assert_eq!(f.wrong_orderings, 0, "a grid was labelled wrongly");
+    assert!(f.views >= 20, "only {} views", f.views);
+    assert!(f.fx_pct.abs() < 0.5 && f.fy_pct.abs() < 0.5, "fx {:+.3} %, fy {:+.3} %", f.fx_pct, f.fy_pct);
+    assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
+    assert!(f.rms_px < if low_light { 0.35 } else { 0.25 }, "RMS {:.3} px", f.rms_px);
+    assert!(f.found_in_view > 0.5, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
+}
+
+#[test]
+fn davis346_4x11_cone_good_light() {
+    let f = run(&Case {
+        sensor: "davis346",
+        pattern: "4x11",
+        trajectory: Trajectory::Cone,
+        light: Light::Good,
+        seconds: 4.0,
+    });
+    guard(&f, false);
+}
+
+#[test]
+fn davis346_4x11_cone_low_light() {
+    let f = run(&Case {
+        sensor: "davis346",
+        pattern: "4x11",
+        trajectory: Trajectory::Cone,
+        light: Light::Low,
+        seconds: 4.0,
+    });
+    guard(&f, true);
+}
+
+#[test]
+fn dvxplorer_3x9_spiral_good_light() {
+    let f = run(&Case {
+        sensor: "dvxplorer",
+        pattern: "3x9",
+        trajectory: Trajectory::Spiral,
+        light: Light::Good,
+        seconds: 3.0,
+    });
+    guard(&f, false);
+}
+
+#[test]
+fn davis346_3x9_spiral_good_light() {
+    let f = run(&Case {
+        sensor: "davis346",
+        pattern: "3x9",
+        trajectory: Trajectory::Spiral,
+        light: Light::Good,
+        seconds: 4.0,
+    });
+    guard(&f, false);
+}
