@@ -103,7 +103,7 @@ fuzz_target!(|data: &[u8]| {
     let chunk = usize::from(chunk % 32) + 1;
     let stream = script(rest);
     // Small capacities keep each run fast; the logic is the same for every size.
-    let mut dev: Box<Device<128, 16, 64, RX, TX>> =
+    let mut dev: Box<Device<128, 16, RX, TX>> =
         Box::new(Device::new(config(40), DeviceOptions { window: 2, stats_every: 3, clock_hz: 0 }));
     let mut acc: FrameAccumulator<4096> = FrameAccumulator::new();
     let mut sent = 0usize;

@@ -56,7 +56,7 @@ fn bulk_replay_equals_the_host_core_bit_for_bit() {
     let elf = elf();
     let sim = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, 5).unwrap();
     let sensor = SensorSize { width: sim.camera.width, height: sim.camera.height };
-    let (events, _) = simulate(sim, 0.55);
+    let (events, _) = simulate(sim, 0.6);
     let bulk = scratch("bulk-replay.bin");
     firmware::write_bulk(&bulk, sensor, &events).unwrap();
     // Ticks every 5 ms: a window of 4000 events spans about 4.3 ms here, so the windower also
