@@ -731,17 +731,19 @@ mod test {
             .collect()
     }
 
-    /// Every point found carries the index of the circle it is: a wrong ordering fails.
+    /// Every point found carries the index of the board position it lies on: the nearest
+    /// true circle position (of `truth`'s grid circles, lost ones included where given) is the
+    /// one it is paired with, and lies within 30 % of that circle's nearest-neighbour spacing.
+    /// A wrong ordering fails. (A blob exactly where a lost circle would be is, to any finder,
+    /// that circle.)
     fn check(found: &GridDetection, truth: &[(CenterRecord, Option<usize>)]) {
+        let circles: Vec<([f64; 2], usize)> =
+            truth.iter().filter_map(|(c, i)| Some(([f64::from(c.u), f64::from(c.v)], (*i)?))).collect();
         for g in &found.points {
-            let (_, idx) = truth
-                .iter()
-                .min_by(|a, b| {
-                    let d = |c: &CenterRecord| (f64::from(c.u) - g.image[0]).hypot(f64::from(c.v) - g.image[1]);
-                    d(&a.0).total_cmp(&d(&b.0))
-                })
-                .unwrap();
-            assert_eq!(*idx, Some(g.index), "point at {:?} labelled {}", g.image, g.index);
+            let (p, idx) = circles.iter().min_by(|a, b| dist(a.0, g.image).total_cmp(&dist(b.0, g.image))).unwrap();
+            let spacing = circles.iter().filter(|c| c.1 != *idx).map(|c| dist(c.0, *p)).fold(f64::INFINITY, f64::min);
+            assert_eq!(*idx, g.index, "point at {:?} labelled {}", g.image, g.index);
+            assert!(dist(*p, g.image) < 0.3 * spacing, "point at {:?} is off its board position", g.image);
         }
     }
 
@@ -939,13 +941,14 @@ mod test {
         ) {
             let pattern = Pattern::new(4, 11, 0.024).unwrap();
             let shot = Shot { roll: roll.to_radians(), tilt_x, tilt_y, distance, k1 };
-            let mut c = shoot(&pattern, &shot, 0.3, seed);
+            let all = shoot(&pattern, &shot, 0.3, seed);
+            let mut c = all.clone();
             c.retain(|x| !lost.contains(&x.1.unwrap_or(usize::MAX)));
             let r = f64::from(c.first().map_or(4.0, |x| x.0.r));
             c.extend(clutter.iter().map(|&(u, v, f)| (centre([u, v], r * f), None)));
             let c = in_view(&c);
             if let Ok(g) = find(&c, &pattern) {
-                check(&g, &c);
+                check(&g, &all);
             }
         }
     }
