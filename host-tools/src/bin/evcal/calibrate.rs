@@ -1,7 +1,7 @@
 //! `evcal calibrate`: from a recording or collected detections to intrinsics and the files
 //! users paste into their stack.
 
-use crate::common::{progress_bar, resolve_sensor, CoreArgs, ReadArgs};
+use crate::common::{progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
@@ -165,15 +165,7 @@ fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::Se
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);
-    let mut counter = 0u64;
-    let events = std::iter::from_fn(|| {
-        let e = rec.next();
-        counter += 1;
-        if counter % 65_536 == 0 {
-            progress.set(rec.progress_bytes());
-        }
-        e
-    });
+    let events = with_position(&mut rec, 65_536, &progress);
     let mut windows = Vec::new();
     let summary = detections::run(events, cfg, |d| {
         pb.set_position(progress.get());

@@ -278,3 +278,21 @@ pub fn spinner(quiet: bool, what: &str) -> ProgressBar {
     pb.enable_steady_tick(std::time::Duration::from_millis(120));
     pb
 }
+
+/// The recording's events, noting the reader's byte position in `position` every `every`
+/// events, for a progress bar to read between events.
+pub fn with_position<'a>(
+    rec: &'a mut Recording,
+    every: u64,
+    position: &'a std::cell::Cell<u64>,
+) -> impl Iterator<Item = Result<evcal_core::event::Event, evcal_host::recording::ReadError>> + 'a {
+    let mut counter = 0u64;
+    std::iter::from_fn(move || {
+        let e = rec.next();
+        counter += 1;
+        if counter % every == 0 {
+            position.set(rec.progress_bytes());
+        }
+        e
+    })
+}

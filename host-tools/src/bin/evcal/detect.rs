@@ -1,6 +1,6 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
-use crate::common::{progress_bar, resolve_sensor, CoreArgs, ReadArgs};
+use crate::common::{progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_host::detections::{self, WindowRecord};
@@ -40,17 +40,9 @@ pub fn run(a: DetectArgs) -> Result<()> {
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut write_err: Option<std::io::Error> = None;
     let mut rec = rec;
-    let mut counter = 0u64;
     // The progress position is read off the reader between events.
     let progress = std::cell::Cell::new(0u64);
-    let events = std::iter::from_fn(|| {
-        let e = rec.next();
-        counter += 1;
-        if counter % 65_536 == 0 {
-            progress.set(rec.progress_bytes());
-        }
-        e
-    });
+    let events = with_position(&mut rec, 65_536, &progress);
     let summary = detections::run(events, cfg, |d| {
         pb.set_position(progress.get());
         pb.set_prefix(format!("windows {}", d.info.seq + 1));

@@ -1,6 +1,8 @@
 //! `evcal replay`: stream a recording into a device and collect its detections.
 
-use crate::common::{output, progress_bar, resolve_sensor, stop_on_ctrl_c, CoreArgs, LinkArgs, ReadArgs};
+use crate::common::{
+    output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs, LinkArgs, ReadArgs,
+};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::link::{
@@ -60,15 +62,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let pb = progress_bar(rec.file_bytes, a.quiet, "replaying");
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);
-    let mut counter = 0u64;
-    let events = std::iter::from_fn(|| {
-        let e = rec.next();
-        counter += 1;
-        if counter % 16_384 == 0 {
-            progress.set(rec.progress_bytes());
-        }
-        e
-    });
+    let events = with_position(&mut rec, 16_384, &progress);
     let mut write_err: Option<std::io::Error> = None;
     let result = replay(&mut link, events, cfg, &opts, &stop, &mut |p| match p {
         Progress::Window(w) => {
