@@ -604,15 +604,34 @@ fn x_axis(pts: &[Pt], labels: &[(usize, usize)], pattern: &Pattern) -> [f64; 2] 
 }
 
 /// Every lattice line bends smoothly: the second difference of three consecutive points is
-/// small against their spacing. A point labelled one step off breaks this.
+/// small against their spacing. A point labelled one step off breaks this. Perspective is
+/// taken out first: the differences are of the points' offsets from a homography of the
+/// whole lattice, so a tilted board's shrinking spacings (a second difference of a sixth of
+/// a step on a close, wide view) pass while distortion's bend and a wrong label still show.
 fn check_smooth(pts: &[Pt], lattice: &HashMap<Cell, usize>) -> Result<(), Miss> {
+    let cells: Vec<(Cell, usize)> = lattice.iter().map(|(&c, &k)| (c, k)).collect();
+    let grid: Vec<[f64; 2]> = cells.iter().map(|&((m, n), _)| [f64::from(m), f64::from(n)]).collect();
+    let image: Vec<[f64; 2]> = cells.iter().map(|&(_, k)| pts[k].p).collect();
+    let h = crate::calib::fit_homography(&grid, &image);
+    // Offset of a point from the homography's image of its cell (the point itself without one).
+    let offset = |(m, n): Cell, p: [f64; 2]| -> [f64; 2] {
+        let Some(h) = h else { return p };
+        let (x, y) = (f64::from(m), f64::from(n));
+        let w = h[6] * x + h[7] * y + h[8];
+        if w.abs() <= 1e-12 || w.is_nan() {
+            return p;
+        }
+        [p[0] - (h[0] * x + h[1] * y + h[2]) / w, p[1] - (h[3] * x + h[4] * y + h[5]) / w]
+    };
     for (&(m, n), &k) in lattice {
         for d in [(1, 0), (0, 1), (1, 1), (1, -1)] {
-            let (Some(&a), Some(&b)) = (lattice.get(&(m - d.0, n - d.1)), lattice.get(&(m + d.0, n + d.1))) else {
+            let (ca, cb) = ((m - d.0, n - d.1), (m + d.0, n + d.1));
+            let (Some(&a), Some(&b)) = (lattice.get(&ca), lattice.get(&cb)) else {
                 continue;
             };
-            let (pa, p, pb) = (pts[a].p, pts[k].p, pts[b].p);
-            let second = (pa[0] - 2.0 * p[0] + pb[0]).hypot(pa[1] - 2.0 * p[1] + pb[1]);
+            let (pa, pb) = (pts[a].p, pts[b].p);
+            let (ra, r, rb) = (offset(ca, pa), offset((m, n), pts[k].p), offset(cb, pb));
+            let second = (ra[0] - 2.0 * r[0] + rb[0]).hypot(ra[1] - 2.0 * r[1] + rb[1]);
             if second > 0.15 * dist(pa, pb) / 2.0 + 0.5 {
                 return Err(Miss::Inconsistent);
             }
@@ -791,6 +810,21 @@ mod test {
                 truth.iter().any(|(c, i)| *i == Some(half_turn(p.index)) && (f64::from(c.u) - p.image[0]).abs() < 1e-3)
             });
             assert!(direct || turned, "{deg}°");
+        }
+    }
+
+    /// A board tilted steeply and close fills a wide view with spacings shrinking by half
+    /// from its near side to its far side; the lines are straight, so it is a grid.
+    #[test]
+    fn close_steep_views_pass_the_smoothness_check() {
+        let pattern = Pattern::new(3, 9, 0.027).unwrap();
+        for (k, (tx, ty)) in [(0.0, 0.7), (0.0, -0.7), (0.7, 0.0), (0.5, 0.5)].into_iter().enumerate() {
+            let shot = Shot { tilt_x: tx, tilt_y: ty, distance: 0.32, ..Shot::flat(10.0 + 40.0 * k as f64) };
+            let c = in_view(&shoot(&pattern, &shot, 0.2, k as u64));
+            assert_eq!(c.len(), pattern.len(), "shot {k} must be wholly in view");
+            let g = find(&c, &pattern).unwrap_or_else(|m| panic!("shot {k}: {m}"));
+            assert_eq!(g.points.len(), pattern.len());
+            check(&g, &c);
         }
     }
 

@@ -7,6 +7,7 @@ pub mod eval;
 pub mod export;
 pub mod grid;
 pub mod link;
+pub mod motion;
 pub mod pipeline;
 pub mod recording;
 pub mod select;

@@ -9,6 +9,7 @@ use crate::calib::{self, CalibError, Calibration, View};
 use crate::detections::WindowRecord;
 use crate::export::{k3_displacement_px, ViewOrigin, WindowSample, K3_NEGLIGIBLE_PX};
 use crate::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
+use crate::motion::{self, EdgeShift};
 use crate::select::{advice, select_views, Coverage, SelectOptions, Selection};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -29,6 +30,9 @@ pub struct Setup {
     /// A circle whose fitted outline comes closer than this to the sensor's border is left
     /// out of its view, px: the sensor cut its arc, and a fit to part of a ring is biased.
     pub edge_margin_px: f64,
+    /// Measure how far the centres trail their circles along the motion and solve on
+    /// centres moved back by that much ([`motion`]).
+    pub edge_shift: bool,
 }
 
 impl Setup {
@@ -41,6 +45,7 @@ impl Setup {
             select: SelectOptions::default(),
             calib: calib::Options::default(),
             edge_margin_px: 1.0,
+            edge_shift: true,
         }
     }
 }
@@ -168,10 +173,13 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
 pub struct Outcome {
     /// The views chosen (indices into the views offered) and why the others were not.
     pub selection: Selection,
-    /// The chosen views, in the order the solver saw them.
+    /// The chosen views, in the order the solver saw them (centres moved by `edge_shift`).
     pub used: Vec<View>,
     /// Where each chosen view came from.
     pub used_origins: Vec<ViewOrigin>,
+    /// How far the centres trailed their circles along the motion, when measured; the
+    /// solve saw them moved forward by that much.
+    pub edge_shift: Option<EdgeShift>,
     /// The solve.
     pub calibration: Calibration,
     /// The same views solved with k3 fixed at 0, for exports whose model has no k3
@@ -214,8 +222,18 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         return Err(PipelineError::NoGrid(views.stats.clone()));
     }
     let selection = select_views(&views.views, &setup.select);
-    let used: Vec<View> = selection.chosen.iter().map(|&i| views.views[i].clone()).collect();
+    let mut used: Vec<View> = selection.chosen.iter().map(|&i| views.views[i].clone()).collect();
     let used_origins: Vec<ViewOrigin> = selection.chosen.iter().map(|&i| views.origins[i]).collect();
+    let mut edge_shift = None;
+    if setup.edge_shift {
+        // Directions come from every view's neighbours, chosen or not.
+        let all = motion::directions(&views.views, &views.origins);
+        let dirs: Vec<Vec<[f64; 2]>> = selection.chosen.iter().map(|&i| all[i].clone()).collect();
+        edge_shift = motion::estimate(&used, &dirs, setup.image_size, &setup.calib);
+        if let Some(s) = edge_shift {
+            used = motion::shifted(&used, &dirs, s.px);
+        }
+    }
     let calibration = calib::calibrate(&used, setup.image_size, &setup.calib).map_err(PipelineError::Calib)?;
     let without_k3 =
         if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
@@ -227,7 +245,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
     let advice = advice(&calibration, &coverage);
-    Ok(Outcome { selection, used, used_origins, calibration, without_k3, coverage, advice })
+    Ok(Outcome { selection, used, used_origins, edge_shift, calibration, without_k3, coverage, advice })
 }
 
 #[cfg(test)]

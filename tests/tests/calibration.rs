@@ -6,11 +6,14 @@
 //! scenario gives a calibration. The accuracy figures are printed beside the targets
 //! (fx, fy within 0.1 %, cx, cy within 0.5 px, RMS ≤ 0.13 px in good light, grid found in
 //! ≥ 95 % of windows where it is wholly in view) and guarded with a margin against
-//! regressions. Not every target is met: the continuous simulation's events trail the moving
-//! edges (threshold crossings in a blurred edge), which biases the centres along the motion
-//! and fx by +0.1–0.2 % (with the true centres in the same views the solve is exact), and in
-//! 4000-event windows part of the grid often fires too few events to be found. The figures
-//! are in the closing note.
+//! regressions. The simulated pixels fire late inside a blurred edge, so the centres trail
+//! their circles along the motion by about a tenth of a pixel: the pipeline measures that
+//! shift from the views and takes it out before the final solve, and the test checks the
+//! measurement against the trailing measured from the truth. Not every target is met: fx
+//! still reads 0.1–0.2 % long after that correction (2 to 4.5 times its standard deviation:
+//! a bias not yet explained; with the true centres in the same views the solve is exact),
+//! and in 4000-event windows part of the grid often fires too few events to be found. The
+//! figures are in the closing note.
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
@@ -39,6 +42,11 @@ struct Figures {
     found_in_view: f64,
     wrong_orderings: usize,
     views: usize,
+    /// The pipeline's estimate of how far the centres trail their circles, px.
+    shift_estimate: Option<f64>,
+    /// The same measured against the truth: mean error of the labelled centres against the
+    /// motion, px.
+    shift_true: f64,
 }
 
 fn run(case: &Case) -> Figures {
@@ -68,10 +76,12 @@ fn run(case: &Case) -> Figures {
     // Every labelled point against the truth of its window: the nearest true circle must be
     // the one it is paired with.
     let mut wrong_orderings = 0;
+    let (mut trailing, mut moving) = (0.0, 0usize);
     let by_seq: std::collections::HashMap<u64, usize> =
         windows.iter().enumerate().map(|(k, w)| (u64::from(w.seq), k)).collect();
     for (view, origin) in views.views.iter().zip(&views.origins) {
-        let t = &truths[by_seq[&origin.window_seq]];
+        let k = by_seq[&origin.window_seq];
+        let t = &truths[k];
         let wrong = view.object.iter().zip(&view.image).any(|(o, p)| {
             let nearest = t
                 .circles
@@ -84,6 +94,19 @@ fn run(case: &Case) -> Figures {
             pattern.object_point(nearest.index) != *o
         });
         wrong_orderings += usize::from(wrong);
+        // How far each centre trails its circle along the circle's true motion.
+        let (before, after) = (sim.truth_at(windows[k].t_ref_us - 500), sim.truth_at(windows[k].t_ref_us + 500));
+        for (o, p) in view.object.iter().zip(&view.image) {
+            let Some(i) = (0..pattern.len()).find(|&i| pattern.object_point(i) == *o) else { continue };
+            let (a, b, c) =
+                (before.circles[i].ellipse_centre, after.circles[i].ellipse_centre, t.circles[i].ellipse_centre);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len = d[0].hypot(d[1]);
+            if len > 0.02 {
+                trailing -= ((p[0] - c[0]) * d[0] + (p[1] - c[1]) * d[1]) / len;
+                moving += 1;
+            }
+        }
     }
     // Found where the grid is wholly in view.
     let in_view: Vec<bool> = truths.iter().map(|t| t.circles.iter().all(|c| c.in_view)).collect();
@@ -105,9 +128,12 @@ fn run(case: &Case) -> Figures {
         found_in_view,
         wrong_orderings,
         views: outcome.calibration.views.len(),
+        shift_estimate: outcome.edge_shift.map(|s| s.px),
+        shift_true: trailing / moving.max(1) as f64,
     };
+    let sd = outcome.calibration.std_dev;
     println!(
-        "{} {} {:?} {:?} {} s: {}; {} views used; fx {:+.3} % fy {:+.3} % (target ±0.1 %), cx {:+.2} cy {:+.2} px (±0.5), RMS {:.3} px (≤ 0.13 good light); found in {:.1} % of {} wholly-in-view windows (≥ 95 %); wrong orderings {}",
+        "{} {} {:?} {:?} {} s: {}; {} views used; centres trail by {:.3} px, measured {:?}; fx {:+.3} % fy {:+.3} % (± {:.3} %, target ±0.1 %), cx {:+.2} cy {:+.2} px (±0.5), RMS {:.3} px (≤ 0.13 good light); found in {:.1} % of {} wholly-in-view windows (≥ 95 %); wrong orderings {}",
         case.sensor,
         case.pattern,
         case.trajectory,
@@ -115,8 +141,11 @@ fn run(case: &Case) -> Figures {
         case.seconds,
         views.stats.summary(),
         f.views,
+        f.shift_true,
+        f.shift_estimate,
         f.fx_pct,
         f.fy_pct,
+        100.0 * sd[0] / k.fx,
         f.cx_px,
         f.cy_px,
         f.rms_px,
@@ -135,6 +164,12 @@ fn guard(f: &Figures, low_light: bool) {
     assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
     assert!(f.rms_px < if low_light { 0.35 } else { 0.25 }, "RMS {:.3} px", f.rms_px);
     assert!(f.found_in_view > 0.5, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
+    let shift = f.shift_estimate.expect("the edge shift is measured");
+    assert!(
+        (shift - f.shift_true).abs() < 0.06,
+        "edge shift measured {shift:.3} px, the centres trail their circles by {:.3} px",
+        f.shift_true
+    );
 }
 
 #[test]

@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! rejected down_weighted_points warnings iterations converged`.
+//! rejected down_weighted_points warnings iterations converged edge_shift`.
 
 use super::{RunCounts, ViewOrigin};
 use crate::calib::{Calibration, Intrinsics};
@@ -61,6 +61,10 @@ pub struct ResultJson {
     pub iterations: usize,
     /// Whether the final solve converged.
     pub converged: bool,
+    /// How far the detected centres trailed their circles along the motion, and so were
+    /// moved forward before the solve (`null`: not measured).
+    #[serde(default)]
+    pub edge_shift: Option<crate::motion::EdgeShift>,
 }
 
 /// One used view in the JSON result.
@@ -147,6 +151,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         warnings: cal.warnings.clone(),
         iterations: cal.iterations,
         converged: cal.converged,
+        edge_shift: None,
     })
 }
 

@@ -90,6 +90,8 @@ pub struct Export<'a> {
     /// `calibration_time` of the OpenCV file, as the user wants it shown (OpenCV's sample
     /// writes `asctime`'s form); `None` leaves the entry out.
     pub calibration_time: Option<&'a str>,
+    /// The shift taken out of the centres before the solve, for the JSON result.
+    pub edge_shift: Option<crate::motion::EdgeShift>,
 }
 
 impl<'a> Export<'a> {
@@ -115,6 +117,7 @@ impl<'a> Export<'a> {
             camera_name: "dvs",
             rostopic: "/dvs/events",
             calibration_time: None,
+            edge_shift: None,
         }
     }
 }
@@ -142,6 +145,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     // Warnings first, so that the JSON carries them too.
     let (kalibr, warnings) = kalibr_camchain_yaml(kalibr_cal, export.rostopic);
     let mut json = result_json(cal, export.origins, export.counts)?;
+    json.edge_shift = export.edge_shift;
     json.warnings.extend(warnings.iter().cloned());
     let json = serde_json::to_string_pretty(&json).context("the JSON result")? + "\n";
 

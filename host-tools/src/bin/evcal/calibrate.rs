@@ -76,6 +76,12 @@ pub struct SolveArgs {
     /// Most views solved from (evenly thinned beyond it).
     #[arg(long, default_value_t = 500)]
     pub max_views: usize,
+    /// Solve on the centres as detected. By default evcal measures how far the centres trail
+    /// their circles along the motion (a DVS pixel fires late inside a blurred edge: about a
+    /// tenth of a pixel, which biases the focal length when the board comes and goes) and
+    /// moves them forward by that much first; the amount is printed and in the JSON result.
+    #[arg(long)]
+    pub no_edge_shift: bool,
 }
 
 impl SolveArgs {
@@ -94,6 +100,7 @@ impl SolveArgs {
         s.calib.robust = !self.no_robust;
         s.select.min_change_px = self.min_change_px;
         s.select.max_views = self.max_views;
+        s.edge_shift = !self.no_edge_shift;
         Ok(s)
     }
 }
@@ -209,6 +216,12 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
     if c.down_weighted_points > 0 {
         println!("  {} stray points down-weighted", c.down_weighted_points);
     }
+    if let Some(s) = &o.edge_shift {
+        println!(
+            "centres moved {:+.3} ± {:.3} px along their motion before the solve (edges seen late; measured on {} points)",
+            s.px, s.std_px, s.points
+        );
+    }
     println!(
         "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
         c.rms_px,
@@ -252,6 +265,7 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
 pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<()> {
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
+    e.edge_shift = o.edge_shift;
     let written = write_all(dir, &e)?;
     if o.without_k3.is_some() {
         println!(

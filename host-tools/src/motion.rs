@@ -1,0 +1,255 @@
+//! Edges seen late: the shift of event-based circle centres along their motion, measured
+//! and taken out before the final solve.
+//!
+//! A DVS pixel fires when its log intensity has moved a threshold away from the level of its
+//! last event, and that level is where its previous change ended. A pixel an edge arrives at
+//! has last changed the other way (the previous edge left it), so its first event needs
+//! more than one threshold of change and every later one follows from there: the events of
+//! an edge sit on the far side of its blurred profile. For a dark circle, the leading arc's
+//! OFF events lie inside the true outline and the trailing arc's ON events outside it: the
+//! fitted circle sits behind the true one by a distance `δ` along its motion, set by the
+//! edge's blur and the thresholds, not by the speed. (A delay that grows with speed, such as
+//! a slow photoreceptor's, is harmless: it shows the whole board a little earlier, a pose
+//! like any other. A constant distance is not: when the board comes nearer, every circle
+//! moves outward and is seen `δ` short, the board looks smaller, and the focal length comes
+//! out long.) In the simulator, `δ` is 0.12 px in good light, and the cone motion turned it
+//! into fx +0.1 to +0.25 %.
+//!
+//! `δ` cannot be seen in one window: a shifted circle and a displaced one leave the same
+//! arcs. It can across views, where the circles move in different directions: each point's
+//! direction of motion comes from where the same board point was in the neighbouring
+//! windows, and [`estimate`] finds the `δ` that lets one camera explain all views best. The
+//! final solve then runs on centres moved forward by `δ`.
+
+use crate::calib::{self, View};
+use crate::export::ViewOrigin;
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+
+/// Neighbouring windows further apart than this do not give a direction of motion: a hand
+/// turns within a few tenths of a second.
+pub const MAX_NEIGHBOUR_GAP_S: f64 = 0.1;
+/// Below this displacement between neighbouring windows, px, the direction is uncertain and
+/// the correction is scaled down in proportion.
+pub const FULL_DIRECTION_PX: f64 = 1.0;
+/// Largest shift searched for, px. A blurred edge's profile is a few pixels wide; a shift
+/// beyond half a pixel would be something else.
+pub const MAX_SHIFT_PX: f64 = 0.5;
+/// The shift is estimated only from at least this many points with a direction.
+pub const MIN_POINTS_WITH_DIRECTION: usize = 200;
+
+/// The measured shift of the centres along their motion.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct EdgeShift {
+    /// How far the centres were behind the circles along their motion, px (negative: ahead).
+    pub px: f64,
+    /// One standard deviation of `px`.
+    pub std_px: f64,
+    /// Points with a direction of motion, over the views used.
+    pub points: usize,
+}
+
+/// Each point's direction of motion: the unit vector from where its board point was in the
+/// nearest earlier window that saw it (within [`MAX_NEIGHBOUR_GAP_S`]) to where it was in the
+/// nearest later one (one-sided at gaps), scaled down below
+/// [`FULL_DIRECTION_PX`] of displacement; zero where no neighbouring window saw it.
+/// `views` and `origins` pair up, in time order.
+pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
+    let key = |o: &[f64; 3]| ((o[0] * 1e6).round() as i64, (o[1] * 1e6).round() as i64);
+    let maps: Vec<HashMap<(i64, i64), [f64; 2]>> =
+        views.iter().map(|v| v.object.iter().zip(&v.image).map(|(o, i)| (key(o), *i)).collect()).collect();
+    let near = |a: usize, b: usize| match (origins.get(a), origins.get(b)) {
+        (Some(x), Some(y)) => (x.t_s - y.t_s).abs() <= MAX_NEIGHBOUR_GAP_S,
+        _ => false,
+    };
+    (0..views.len())
+        .map(|k| {
+            views[k]
+                .object
+                .iter()
+                .zip(&views[k].image)
+                .map(|(o, here)| {
+                    // The nearest window before and after that saw this board point.
+                    let seen = |j: &usize| maps[*j].get(&key(o)).copied();
+                    let prev = (0..k).rev().take_while(|&j| near(j, k)).find_map(|j| seen(&j));
+                    let next = (k + 1..views.len()).take_while(|&j| near(j, k)).find_map(|j| seen(&j));
+                    let d = match (prev, next) {
+                        (Some(a), Some(b)) => [b[0] - a[0], b[1] - a[1]],
+                        (Some(a), None) => [here[0] - a[0], here[1] - a[1]],
+                        (None, Some(b)) => [b[0] - here[0], b[1] - here[1]],
+                        (None, None) => return [0.0, 0.0],
+                    };
+                    let len = d[0].hypot(d[1]);
+                    if len <= 1e-9 || len.is_nan() {
+                        return [0.0, 0.0];
+                    }
+                    let s = (len / FULL_DIRECTION_PX).min(1.0) / len;
+                    [d[0] * s, d[1] * s]
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// `views` with every point moved `shift` px along its direction.
+pub fn shifted(views: &[View], dirs: &[Vec<[f64; 2]>], shift: f64) -> Vec<View> {
+    views
+        .iter()
+        .zip(dirs)
+        .map(|(v, d)| View {
+            object: v.object.clone(),
+            image: v.image.iter().zip(d).map(|(p, d)| [p[0] + shift * d[0], p[1] + shift * d[1]]).collect(),
+        })
+        .collect()
+}
+
+/// The shift that lets one camera explain `views` best (plain least squares, `opts`' fixed
+/// parameters), or `None` when too few points have a direction or the solves fail.
+pub fn estimate(
+    views: &[View],
+    dirs: &[Vec<[f64; 2]>],
+    image_size: [u32; 2],
+    opts: &calib::Options,
+) -> Option<EdgeShift> {
+    let points = dirs.iter().flatten().filter(|d| d[0] != 0.0 || d[1] != 0.0).count();
+    if points < MIN_POINTS_WITH_DIRECTION {
+        return None;
+    }
+    let base = calib::Options { robust: false, ..opts.clone() };
+    let first = calib::calibrate(views, image_size, &base).ok()?;
+    // Centres far off (a cluster that caught clutter, a ring half fired) would pull the
+    // shift towards whatever explains them; it is measured on the others.
+    let (views, dirs) = trimmed(views, dirs, &first);
+    let (views, dirs) = (&views[..], &dirs[..]);
+    let first = calib::calibrate(views, image_size, &base).ok()?;
+    let total: usize = views.iter().map(|v| v.object.len().min(v.image.len())).sum();
+    // Every solve starts where the unshifted one ended: a fraction of a pixel changes little.
+    let warm = calib::Options { start: Some(first.intrinsics), ..base };
+    let cost = |s: f64| -> f64 {
+        match calib::calibrate(&shifted(views, dirs, s), image_size, &warm) {
+            Ok(c) if c.views.len() == first.views.len() => c.rms_px * c.rms_px * total as f64,
+            _ => f64::INFINITY,
+        }
+    };
+    // Golden-section search: the cost is a smooth bowl in the shift.
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (-MAX_SHIFT_PX, MAX_SHIFT_PX);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (cost(c), cost(d));
+    while b - a > 2e-3 {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = cost(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = cost(d);
+        }
+    }
+    let best = 0.5 * (a + b);
+    let (f0, h) = (cost(best), 0.05);
+    let curvature = (cost(best + h) + cost(best - h) - 2.0 * f0) / (h * h);
+    if !f0.is_finite() || curvature.is_nan() || curvature <= 0.0 {
+        return None;
+    }
+    // Residual variance per coordinate; the cost is a sum of squares, so var = 2σ²/curvature.
+    let sigma2 = f0 / (2.0 * total as f64).max(1.0);
+    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points })
+}
+
+/// Points further than [`TRIM_RMS`] times the solve's RMS from their reprojection are left
+/// out of the shift's estimate.
+const TRIM_RMS: f64 = 2.5;
+
+/// `views` and their directions without the points `cal` reprojects far from where they
+/// were seen (views `cal` set aside are dropped whole).
+fn trimmed(views: &[View], dirs: &[Vec<[f64; 2]>], cal: &calib::Calibration) -> (Vec<View>, Vec<Vec<[f64; 2]>>) {
+    let limit = TRIM_RMS * cal.rms_px;
+    let mut out = (Vec::new(), Vec::new());
+    for r in &cal.views {
+        let (Some(v), Some(d)) = (views.get(r.view), dirs.get(r.view)) else { continue };
+        let rot = nalgebra::Rotation3::from_scaled_axis(nalgebra::Vector3::from(r.rvec));
+        let t = nalgebra::Vector3::from(r.tvec);
+        let (mut view, mut dir) = (View { object: Vec::new(), image: Vec::new() }, Vec::new());
+        for ((o, m), d) in v.object.iter().zip(&v.image).zip(d) {
+            let near = cal
+                .intrinsics
+                .project(&(rot * nalgebra::Vector3::from(*o) + t))
+                .is_some_and(|p| (p[0] - m[0]).hypot(p[1] - m[1]) <= limit);
+            if near {
+                view.object.push(*o);
+                view.image.push(*m);
+                dir.push(*d);
+            }
+        }
+        out.0.push(view);
+        out.1.push(dir);
+    }
+    out
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::calib::{synthetic_views, Intrinsics};
+
+    fn truth() -> Intrinsics {
+        Intrinsics { fx: 330.0, fy: 331.0, cx: 170.0, cy: 128.0, k1: -0.3, k2: 0.12, p1: 0.0005, p2: -0.0003, k3: 0.0 }
+    }
+
+    /// Views in time order whose points move: each view is the previous one's pose a little
+    /// on, so neighbouring windows give directions.
+    fn moving_views(n: usize) -> (Vec<View>, Vec<ViewOrigin>) {
+        let views = synthetic_views(&truth(), n, 0.0, 3);
+        let origins = (0..n).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect();
+        (views, origins)
+    }
+
+    #[test]
+    fn directions_are_unit_vectors_towards_the_next_window() {
+        let o = |x: f64| [x, 0.0, 0.0];
+        let views = vec![
+            View { object: vec![o(0.0), o(1.0)], image: vec![[10.0, 10.0], [20.0, 10.0]] },
+            View { object: vec![o(0.0)], image: vec![[12.0, 10.0]] },
+            View { object: vec![o(0.0), o(1.0)], image: vec![[14.0, 10.0], [20.0, 10.3]] },
+            View { object: vec![o(0.0)], image: vec![[50.0, 50.0]] },
+        ];
+        let t = [0.0, 0.033, 0.066, 1.0];
+        let origins: Vec<ViewOrigin> =
+            t.iter().enumerate().map(|(k, &t_s)| ViewOrigin { window_seq: k as u64, t_s }).collect();
+        let d = directions(&views, &origins);
+        // The second point is missing from the window between: its neighbours are two apart.
+        // It moved 0.3 px: below FULL_DIRECTION_PX, the direction is scaled down.
+        let close = |a: &[[f64; 2]], b: &[[f64; 2]]| {
+            a.len() == b.len()
+                && a.iter().zip(b).all(|(p, q)| (p[0] - q[0]).abs() < 1e-12 && (p[1] - q[1]).abs() < 1e-12)
+        };
+        assert!(close(&d[0], &[[1.0, 0.0], [0.0, 0.3]]), "{:?}", d[0]);
+        assert!(close(&d[1], &[[1.0, 0.0]]), "{:?}", d[1]);
+        assert!(close(&d[2], &[[1.0, 0.0], [0.0, 0.3]]), "one-sided, the next window is too far: {:?}", d[2]);
+        assert!(close(&d[3], &[[0.0, 0.0]]), "the last window is a second later: no neighbour: {:?}", d[3]);
+    }
+
+    #[test]
+    fn finds_a_shift_put_into_exact_views_and_taking_it_out_restores_the_camera() {
+        let (views, origins) = moving_views(40);
+        let dirs = directions(&views, &origins);
+        // The detections trail their circles by 0.15 px along the motion.
+        let late = shifted(&views, &dirs, -0.15);
+        let est = estimate(&late, &dirs, [346, 260], &calib::Options::default()).expect("an estimate");
+        assert!((est.px - 0.15).abs() < 0.01, "{est:?}");
+        let fixed = calib::calibrate(&shifted(&late, &dirs, est.px), [346, 260], &calib::Options::default()).unwrap();
+        assert!((fixed.intrinsics.fx / truth().fx - 1.0).abs() < 1e-4, "{:?}", fixed.intrinsics);
+    }
+
+    #[test]
+    fn no_shift_is_found_where_there_is_none_and_too_few_directions_give_none() {
+        let (views, origins) = moving_views(40);
+        let dirs = directions(&views, &origins);
+        let est = estimate(&views, &dirs, [346, 260], &calib::Options::default()).expect("an estimate");
+        assert!(est.px.abs() < 0.005, "{est:?}");
+        let none: Vec<Vec<[f64; 2]>> = views.iter().map(|v| vec![[0.0, 0.0]; v.object.len()]).collect();
+        assert!(estimate(&views, &none, [346, 260], &calib::Options::default()).is_none());
+    }
+}
