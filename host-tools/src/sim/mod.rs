@@ -206,6 +206,13 @@ pub struct Simulator {
     /// Per pixel: the ray through its centre in camera coordinates (z = 1).
     rays: Vec<[f64; 2]>,
     pixels: Vec<PixelState>,
+    /// Per pixel: the next time it must be evaluated, s. Kept apart from the states: most
+    /// pixels are far from every edge and skipped, and the scan for the due ones then reads
+    /// 8 bytes a pixel instead of a whole state.
+    next_eval: Vec<f64>,
+    /// Per chunk of [`CHUNK_ROWS`] rows: the earliest `next_eval` of its pixels, so that a
+    /// chunk with nothing due is skipped without reading it.
+    chunk_next: Vec<f64>,
     hot: Vec<u32>,
     rng: ChaCha8Rng,
     fov_half: [f64; 2],
@@ -215,8 +222,13 @@ pub struct Simulator {
     started: bool,
 }
 
-/// One band's step: threshold crossings (pixel, time, ±1) and the pixels' new states.
-type BandResult = (Vec<(usize, f64, f64)>, Vec<(usize, PixelState)>);
+/// Rows in a chunk of pixels, the unit of work shared among threads: small enough that the
+/// threads share the rows an edge crosses evenly (the board covers a part of the image),
+/// large enough that handing out chunks costs little.
+const CHUNK_ROWS: usize = 4;
+
+/// Threshold crossings (pixel, time, +1/−1).
+type Crossings = Vec<(usize, f64, f64)>;
 
 #[derive(Debug, Clone, Copy)]
 struct PixelState {
@@ -228,8 +240,6 @@ struct PixelState {
     off: f64,
     /// Time of the last event, s.
     last: f64,
-    /// Next time this pixel must be evaluated, s.
-    next_eval: f64,
 }
 
 impl Simulator {
@@ -253,7 +263,6 @@ impl Simulator {
                 on: thr.sample(&mut rng).max(floor),
                 off: thr.sample(&mut rng).max(floor),
                 last: f64::NEG_INFINITY,
-                next_eval: 0.0,
             })
             .collect();
         let n_hot = ((w * h) as f64 * cfg.pixel.hot_fraction).round() as usize;
@@ -261,7 +270,21 @@ impl Simulator {
         let fov_half =
             [(f64::from(cam.width) * 0.5 / cam.fx).atan() * 0.9, (f64::from(cam.height) * 0.5 / cam.fy).atan() * 0.9];
         let scene = Scene::new(cfg.board, cfg.clutter, cfg.seed);
-        Self { cfg, scene, rays, pixels, hot, rng, fov_half, t: 0.0, pending: Vec::new(), started: false }
+        let chunks = h.div_ceil(CHUNK_ROWS);
+        Self {
+            cfg,
+            scene,
+            rays,
+            pixels,
+            next_eval: vec![0.0; w * h],
+            chunk_next: vec![0.0; chunks],
+            hot,
+            rng,
+            fov_half,
+            t: 0.0,
+            pending: Vec::new(),
+            started: false,
+        }
     }
 
     /// The configuration.
@@ -349,30 +372,12 @@ impl Simulator {
             let (t0, t1) = (self.t, self.t + dt);
             let pose = self.pose_at(t1);
             let origin: [f64; 3] = pose.centre().into();
-            // Edge pixels, in parallel bands of rows; each band writes its own events.
-            let band = npix.div_ceil(threads).div_ceil(w) * w;
-            let sim = &*self;
-            let mut results: Vec<BandResult> = Vec::new();
-            std::thread::scope(|s| {
-                let handles: Vec<_> = (0..npix)
-                    .step_by(band.max(1))
-                    .map(|start| {
-                        let end = (start + band).min(npix);
-                        s.spawn(move || sim.step_band(start, end, &pose, origin, t0, t1, speed))
-                    })
-                    .collect();
-                for h in handles {
-                    results.push(h.join().expect("simulator band panicked"));
-                }
-            });
+            let to_board = *pose.rotation.inverse().matrix();
+            let crossings = self.step_pixels(&to_board, origin, t0, t1, speed, threads);
             let mut fresh: Vec<Event> = Vec::new();
-            for (events, states) in results {
-                for (p, st) in states {
-                    self.pixels[p] = st;
-                }
-                for (p, t, pol) in events {
-                    fresh.push(self.stamp(p, t, pol > 0.0, w));
-                }
+            // In pixel order, as the jitter's random draws follow it.
+            for (p, t, pol) in crossings {
+                fresh.push(self.stamp(p, t, pol > 0.0, w));
             }
             // Background activity and hot pixels: independent of the scene.
             let noise = |rng: &mut ChaCha8Rng, rate: f64| -> u64 {
@@ -396,11 +401,14 @@ impl Simulator {
                     fresh.push(self.stamp(self.hot[k] as usize, t, pol, w));
                 }
             }
-            self.pending.append(&mut fresh);
+            // Events with equal keys are equal, so any sort gives the same stream. The pending
+            // events are sorted already: sort the fresh ones and merge.
+            let key = |e: &Event| (e.t_us, e.y, e.x, e.polarity);
+            fresh.sort_unstable_by_key(key);
+            merge_sorted(&mut self.pending, &fresh, key);
             // Jitter is at most `jitter_cap`: events before t1 − cap can no longer be
             // overtaken by later ones.
             let horizon = self.to_us(if t1 >= seconds { f64::INFINITY } else { t1 - jitter_cap });
-            self.pending.sort_unstable_by_key(|e| (e.t_us, e.y, e.x, e.polarity));
             let ready = self.pending.partition_point(|e| e.t_us < horizon);
             if ready > 0 {
                 sink(&self.pending[..ready]);
@@ -457,8 +465,9 @@ impl Simulator {
             // Strictly within a threshold: l − on < reference < l + off.
             st.reference = l + self.rng.random_range(lo..hi) * 0.999;
             st.last = f64::NEG_INFINITY;
-            st.next_eval = t;
         }
+        self.next_eval.fill(t);
+        self.chunk_next.fill(t);
     }
 
     /// The scene's log intensity at every pixel at `t`, and the distance to the nearest edge's
@@ -508,32 +517,94 @@ impl Simulator {
         Event { t_us: self.to_us(t + j), x: (p % w) as u16, y: (p / w) as u16, polarity }
     }
 
-    /// Advances pixels `start..end` from `t0` to `t1`: new states and threshold crossings
-    /// (pixel, time, +1/−1).
-    #[allow(clippy::too_many_arguments)]
-    fn step_band(
-        &self,
-        start: usize,
-        end: usize,
-        pose: &Pose,
+    /// Advances every pixel due by `t1` from `t0` to `t1`, chunks of rows shared among
+    /// `threads`; the threshold crossings in pixel order.
+    fn step_pixels(
+        &mut self,
+        to_board: &nalgebra::Matrix3<f64>,
         origin: [f64; 3],
         t0: f64,
         t1: f64,
         speed: f64,
-    ) -> BandResult {
+        threads: usize,
+    ) -> Crossings {
+        let chunk_len = (CHUNK_ROWS * usize::from(self.cfg.camera.width)).max(1);
+        // Out of `self` for the step, so the threads can change disjoint chunks of them while
+        // reading the rest of the simulator.
+        let mut pixels = std::mem::take(&mut self.pixels);
+        let mut next_eval = std::mem::take(&mut self.next_eval);
+        let mut chunk_next = std::mem::take(&mut self.chunk_next);
+        let sim = &*self;
+        let due: Vec<_> = pixels
+            .chunks_mut(chunk_len)
+            .zip(next_eval.chunks_mut(chunk_len))
+            .zip(chunk_next.iter_mut())
+            .enumerate()
+            .filter(|(_, (_, next))| **next <= t1)
+            .map(|(k, ((st, ne), next))| (k, st, ne, next))
+            .collect();
+        let workers = threads.min(due.len()).max(1);
+        let queue = std::sync::Mutex::new(due.into_iter());
+        let work = || {
+            let mut out: Vec<(usize, Crossings)> = Vec::new();
+            // The guard is dropped inside `and_then`, so the queue is locked only to take a
+            // chunk. A worker that panicked poisons it; the others stop and the join below
+            // passes the panic on.
+            while let Some((k, st, ne, next)) = queue.lock().ok().and_then(|mut q| q.next()) {
+                let c = sim.step_chunk(k * chunk_len, st, ne, next, to_board, origin, t0, t1, speed);
+                if !c.is_empty() {
+                    out.push((k, c));
+                }
+            }
+            out
+        };
+        let mut done = if workers > 1 {
+            std::thread::scope(|s| {
+                let helpers: Vec<_> = (1..workers).map(|_| s.spawn(work)).collect();
+                let mut done = work();
+                for h in helpers {
+                    done.extend(h.join().expect("simulator thread panicked"));
+                }
+                done
+            })
+        } else {
+            work()
+        };
+        self.pixels = pixels;
+        self.next_eval = next_eval;
+        self.chunk_next = chunk_next;
+        done.sort_unstable_by_key(|(k, _)| *k);
+        done.into_iter().flat_map(|(_, c)| c).collect()
+    }
+
+    /// Advances the due pixels of one chunk (`states` and `next_eval` from pixel `base`) from
+    /// `t0` to `t1`, and sets `chunk_next` to the chunk's earliest next evaluation.
+    #[allow(clippy::too_many_arguments)]
+    fn step_chunk(
+        &self,
+        base: usize,
+        states: &mut [PixelState],
+        next_eval: &mut [f64],
+        chunk_next: &mut f64,
+        to_board: &nalgebra::Matrix3<f64>,
+        origin: [f64; 3],
+        t0: f64,
+        t1: f64,
+        speed: f64,
+    ) -> Crossings {
         let mut events = Vec::new();
-        let mut states = Vec::new();
         let refractory = self.cfg.pixel.refractory_s;
-        let to_board = *pose.rotation.inverse().matrix();
         // Edge zones already include their blur; one pixel more for the pixel's own extent
         // and the tilt of the plane (distances are measured along it).
         let margin = 1.0;
-        for p in start..end {
-            let mut st = self.pixels[p];
-            if st.next_eval > t1 {
+        let mut earliest = f64::INFINITY;
+        for (i, (st, next)) in states.iter_mut().zip(next_eval.iter_mut()).enumerate() {
+            if *next > t1 {
+                earliest = earliest.min(*next);
                 continue;
             }
-            let (l1, dist) = self.log_intensity(&to_board, origin, p);
+            let p = base + i;
+            let (l1, dist) = self.log_intensity(to_board, origin, p);
             let l0 = st.level;
             loop {
                 let (level, sign) = if l1 - st.reference >= st.on {
@@ -556,16 +627,41 @@ impl Simulator {
             st.level = l1;
             // Beyond an edge's blurred zone a pixel is flat until an edge could have travelled
             // the difference.
-            st.next_eval = if dist > margin { t1 + (dist - margin) / speed } else { t1 };
-            states.push((p, st));
+            *next = if dist > margin { t1 + (dist - margin) / speed } else { t1 };
+            earliest = earliest.min(*next);
         }
-        (events, states)
+        *chunk_next = earliest;
+        events
     }
 
     /// Ground truth at `t_us` (timestamps as the events carry them).
     pub fn truth_at(&self, t_us: u64) -> FrameTruth {
         let t = t_us.saturating_sub(self.cfg.start_us) as f64 * 1e-6;
         truth(&self.cfg, &self.pose_at(t), t_us)
+    }
+}
+
+/// Merges the sorted `fresh` into the sorted `into`, keeping it sorted by `key`.
+fn merge_sorted<K: Ord>(into: &mut Vec<Event>, fresh: &[Event], key: impl Fn(&Event) -> K) {
+    match (into.last(), fresh.first()) {
+        (_, None) => {}
+        (Some(last), Some(first)) if key(last) > key(first) => {
+            let old = std::mem::take(into);
+            into.reserve(old.len() + fresh.len());
+            let (mut i, mut j) = (0, 0);
+            while i < old.len() && j < fresh.len() {
+                if key(&fresh[j]) < key(&old[i]) {
+                    into.push(fresh[j]);
+                    j += 1;
+                } else {
+                    into.push(old[i]);
+                    i += 1;
+                }
+            }
+            into.extend_from_slice(&old[i..]);
+            into.extend_from_slice(&fresh[j..]);
+        }
+        _ => into.extend_from_slice(fresh),
     }
 }
 

@@ -1,7 +1,7 @@
 //! `evcal calibrate`: from a recording or collected detections to intrinsics and the files
 //! users paste into their stack.
 
-use crate::common::{progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
+use crate::common::{outln, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
@@ -155,9 +155,9 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     }
     let views = find_views(&windows, &setup, a.quiet);
     let outcome = solve(&views, &setup)?;
-    report(&views, &outcome, &setup, None);
-    export(&views, &outcome, &a.out, a.json.as_deref())?;
-    Ok(())
+    let written = export(&views, &outcome, &a.out, a.json.as_deref())?;
+    report(&views, &outcome, &setup, None)?;
+    list_written(&written)
 }
 
 fn indent(s: &str) -> String {
@@ -201,87 +201,108 @@ pub fn solve(views: &Views, setup: &Setup) -> Result<Outcome> {
 }
 
 /// Prints the result for people; beside `truth` when known.
-pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsics>) {
+pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsics>) -> Result<()> {
     let c = &o.calibration;
-    println!("{}", views.stats.summary());
-    println!("{}", o.selection.summary(&setup.select));
+    outln!("{}", views.stats.summary())?;
+    outln!("{}", o.selection.summary(&setup.select))?;
     for r in &c.rejected {
-        println!(
+        outln!(
             "  view {} (window {}) set aside: {}",
             r.view,
             o.used_origins.get(r.view).map_or(0, |v| v.window_seq),
             r.reason
-        );
+        )?;
     }
     if c.down_weighted_points > 0 {
-        println!("  {} stray points down-weighted", c.down_weighted_points);
+        outln!("  {} stray points down-weighted", c.down_weighted_points)?;
     }
     if let Some(s) = &o.edge_shift {
-        println!(
+        outln!(
             "centres moved {:+.3} ± {:.3} px along their motion before the solve (edges seen late; measured on {} points)",
-            s.px, s.std_px, s.points
-        );
+            s.px,
+            s.std_px,
+            s.points
+        )?;
     }
-    println!(
+    outln!(
         "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
         c.rms_px,
         c.views.len(),
         c.views.iter().map(|v| v.points).sum::<usize>(),
         c.mean_view_px,
         c.median_view_px
-    );
+    )?;
     let est = c.intrinsics.to_array();
     match truth {
         Some(t) => {
             let t = t.to_array();
-            println!("  {:<4} {:>12} {:>10} {:>12} {:>12}", "", "estimate", "± 1σ", "truth", "error");
+            outln!("  {:<4} {:>12} {:>10} {:>12} {:>12}", "", "estimate", "± 1σ", "truth", "error")?;
             for i in 0..9 {
                 let err = est[i] - t[i];
                 let rel = if i < 2 { format!(" ({:+.3} %)", 100.0 * err / t[i]) } else { String::new() };
-                println!(
+                outln!(
                     "  {:<4} {:>12.5} {:>10.5} {:>12.5} {:>+12.5}{rel}",
-                    PARAMETER_NAMES[i], est[i], c.std_dev[i], t[i], err
-                );
+                    PARAMETER_NAMES[i],
+                    est[i],
+                    c.std_dev[i],
+                    t[i],
+                    err
+                )?;
             }
         }
         None => {
-            println!("  {:<4} {:>12} {:>10}", "", "estimate", "± 1σ");
+            outln!("  {:<4} {:>12} {:>10}", "", "estimate", "± 1σ")?;
             for i in 0..9 {
-                println!("  {:<4} {:>12.5} {:>10.5}", PARAMETER_NAMES[i], est[i], c.std_dev[i]);
+                outln!("  {:<4} {:>12.5} {:>10.5}", PARAMETER_NAMES[i], est[i], c.std_dev[i])?;
             }
         }
     }
-    println!(
+    outln!(
         "coverage of the sensor by the points used ({:.0} % of cells):\n{}",
         100.0 * o.coverage.covered,
         indent(&o.coverage.picture())
-    );
+    )?;
     for w in c.warnings.iter().chain(&o.advice) {
-        println!("warning: {w}");
+        outln!("warning: {w}")?;
     }
+    Ok(())
 }
 
-/// Writes every output into `dir`, and the JSON result to `json` too.
-pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<()> {
+/// Writes every output into `dir`, and the JSON result to `json` too. Done before anything
+/// is printed, so that a reader closing standard output early (`| head`) cannot leave the
+/// files unwritten or stale from an earlier run.
+pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<Written> {
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
     let written = write_all(dir, &e)?;
-    if o.without_k3.is_some() {
-        println!(
-            "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
-        );
-    }
-    for w in &written.warnings {
-        println!("warning: {w}");
-    }
     if let Some(j) = json {
         std::fs::copy(&written.paths[0], j)
             .with_context(|| format!("{}: cannot write the JSON result", j.display()))?;
     }
-    println!("wrote:");
-    for p in written.paths.iter().map(|p| p.display().to_string()).chain(json.map(|j| j.display().to_string())) {
-        println!("  {p}");
+    Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
+}
+
+/// What [`export`] wrote, to list after the report.
+pub struct Written {
+    files: evcal_host::export::Written,
+    json: Option<PathBuf>,
+    without_k3: bool,
+}
+
+/// Lists what [`export`] wrote, with its notes.
+pub fn list_written(w: &Written) -> Result<()> {
+    if w.without_k3 {
+        outln!(
+            "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
+        )?;
+    }
+    for warning in &w.files.warnings {
+        outln!("warning: {warning}")?;
+    }
+    outln!("wrote:")?;
+    for p in w.files.paths.iter().chain(&w.json) {
+        outln!("  {}", p.display())?;
     }
     Ok(())
 }

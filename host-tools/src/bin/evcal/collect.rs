@@ -7,7 +7,7 @@ use evcal_host::link::{
     collect::{collect, CollectLimits, CollectReport},
     Progress,
 };
-use std::{io::Write, path::PathBuf, time::Duration};
+use std::{path::PathBuf, time::Duration};
 
 #[derive(Args)]
 pub struct CollectArgs {
@@ -37,20 +37,25 @@ pub fn run(a: CollectArgs) -> Result<()> {
     let link = a.link.open()?;
     let mut out = output(a.out.as_deref())?;
     let pb = spinner(a.quiet, "collecting");
-    let mut write_err: Option<std::io::Error> = None;
+    let mut write_err: Option<anyhow::Error> = None;
     let result = collect(&link, CollectLimits { duration, windows: a.windows }, &stop, &mut |p| match p {
         Progress::Window(w) => {
             if write_err.is_none() {
-                write_err = writeln!(out, "{}", w.to_json_line()).err();
+                write_err = out.line(&w.to_json_line()).err();
+                if write_err.is_some() {
+                    // Nothing more can be written: stop as Ctrl-C would.
+                    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
             }
         }
         Progress::Status(r) => pb.set_prefix(status(r)),
     });
     pb.finish_and_clear();
-    out.flush().context("writing detections")?;
+    let flushed = out.flush();
     if let Some(e) = write_err {
-        return Err(e).context("writing detections");
+        return Err(e.context("writing detections"));
     }
+    flushed.context("writing detections")?;
     let r = result?;
     if !a.quiet {
         eprintln!(

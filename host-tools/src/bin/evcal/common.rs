@@ -16,7 +16,10 @@ use evcal_host::{
     sim::{FrameTruth, SimConfig, Simulator},
 };
 use indicatif::{ProgressBar, ProgressStyle};
-use std::{io::BufWriter, path::Path};
+use std::{
+    io::{BufWriter, Write},
+    path::Path,
+};
 
 /// What a recording cannot say about itself: which stream to read, the unit of its times.
 #[derive(Args, Clone)]
@@ -254,13 +257,81 @@ pub fn stop_on_ctrl_c() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
     stop
 }
 
+/// Standard output's reader went away (`evcal ... | head`). Not a failure: `main` ends
+/// quietly with status 0 when a command stops with it. Kept apart from other broken pipes
+/// (a device's TCP link closing is an error to report).
+#[derive(Debug)]
+pub struct StdoutClosed;
+
+impl std::fmt::Display for StdoutClosed {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("standard output was closed")
+    }
+}
+
+impl std::error::Error for StdoutClosed {}
+
+/// A failed write to standard output as an error: [`StdoutClosed`] for a closed pipe,
+/// otherwise the cause (a full disk behind a redirection is a real failure).
+pub fn stdout_error(e: std::io::Error) -> anyhow::Error {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        anyhow::Error::new(StdoutClosed)
+    } else {
+        anyhow::Error::new(e).context("writing to standard output")
+    }
+}
+
+/// Writes one line to standard output. `println!` panics when the reader has gone; this
+/// returns [`StdoutClosed`] for the command to stop on.
+pub fn print_line(args: std::fmt::Arguments<'_>) -> Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_fmt(args).and_then(|()| out.write_all(b"\n")).map_err(stdout_error)
+}
+
+/// `println!` for the commands' reports: `outln!(...)?` stops the command when standard
+/// output has closed.
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        $crate::common::print_line(format_args!($($arg)*))
+    };
+}
+pub(crate) use outln;
+
+/// Where a command's JSON lines go: standard output or a created file, buffered.
+pub struct Output {
+    w: Box<dyn Write>,
+    /// The file; `None` for standard output.
+    path: Option<std::path::PathBuf>,
+}
+
+impl Output {
+    /// Writes one line.
+    pub fn line(&mut self, line: &str) -> Result<()> {
+        writeln!(self.w, "{line}").map_err(|e| self.error(e))
+    }
+
+    pub fn flush(&mut self) -> Result<()> {
+        self.w.flush().map_err(|e| self.error(e))
+    }
+
+    fn error(&self, e: std::io::Error) -> anyhow::Error {
+        match &self.path {
+            None => stdout_error(e),
+            Some(p) => anyhow::Error::new(e).context(format!("writing {}", p.display())),
+        }
+    }
+}
+
 /// Standard output or a created file, buffered.
-pub fn output(path: Option<&Path>) -> Result<Box<dyn std::io::Write>> {
+pub fn output(path: Option<&Path>) -> Result<Output> {
     Ok(match path {
-        Some(p) => Box::new(BufWriter::new(
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => Box::new(BufWriter::new(std::io::stdout().lock())),
+        Some(p) => Output {
+            w: Box::new(BufWriter::new(
+                std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+            )),
+            path: Some(p.to_path_buf()),
+        },
+        None => Output { w: Box::new(BufWriter::new(std::io::stdout().lock())), path: None },
     })
 }
 

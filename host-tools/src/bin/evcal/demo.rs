@@ -1,7 +1,7 @@
 //! `evcal demo`: the main job on a built-in default, end to end with known truth.
 
-use crate::calibrate::{export, find_views, report, solve};
-use crate::common::run_simulation;
+use crate::calibrate::{export, find_views, list_written, report, solve};
+use crate::common::{outln, run_simulation};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize};
@@ -40,7 +40,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let c = cfg.camera;
     let truth = Intrinsics { fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, k1: c.k1, k2: c.k2, p1: c.p1, p2: c.p2, k3: c.k3 };
     let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).map_err(anyhow::Error::msg)?;
-    println!(
+    outln!(
         "evcal demo: a simulated DAVIS346 ({}x{}) sweeps a {}x{} asymmetric circle grid ({} mm) in front of a cluttered wall, {} light, cone motion, {:.1} s",
         c.width,
         c.height,
@@ -49,9 +49,9 @@ pub fn run(a: DemoArgs) -> Result<()> {
         pattern.spacing * 1e3,
         a.light.name(),
         a.seconds
-    );
+    )?;
     let (events, sim) = run_simulation(cfg, a.seconds, a.quiet)?;
-    println!("simulated {} events ({:.2} M events/s)", events.len(), events.len() as f64 / a.seconds / 1e6);
+    outln!("simulated {} events ({:.2} M events/s)", events.len(), events.len() as f64 / a.seconds / 1e6)?;
 
     // Every window goes through the firmware's protocol loop, the wire encoder and the
     // host's decoder, exactly as from a device.
@@ -62,24 +62,24 @@ pub fn run(a: DemoArgs) -> Result<()> {
     for w in &windows {
         score.add(w, &eval::true_circles(&sim.truth_at(w.t_ref_us)), &rules);
     }
-    println!(
+    outln!(
         "detection core on the virtual device: {} windows of {} events, {:.0} bytes/window over the link; circles wholly in view found {:.1} %, centre RMS {:.3} px against the truth",
         link.windows,
         det.window.events,
         link.bytes_received as f64 / link.windows.max(1) as f64,
         100.0 * score.found_rate(),
         score.rms_px()
-    );
+    )?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the directory", a.out.display()))?;
     write_detections(&a.out.join("detections.jsonl"), &windows)?;
 
     let setup = Setup::new(pattern, [u32::from(c.width), u32::from(c.height)]);
     let views = find_views(&windows, &setup, a.quiet);
     let outcome = solve(&views, &setup)?;
-    report(&views, &outcome, &setup, Some(&truth));
-    export(&views, &outcome, &a.out, None)?;
-    println!("  {}", a.out.join("detections.jsonl").display());
-    Ok(())
+    let written = export(&views, &outcome, &a.out, None)?;
+    report(&views, &outcome, &setup, Some(&truth))?;
+    list_written(&written)?;
+    outln!("  {}", a.out.join("detections.jsonl").display())
 }
 
 fn write_detections(path: &std::path::Path, windows: &[WindowRecord]) -> Result<()> {

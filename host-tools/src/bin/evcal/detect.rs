@@ -1,13 +1,10 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
-use crate::common::{progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
+use crate::common::{output, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_host::detections::{self, WindowRecord};
-use std::{
-    io::{BufWriter, Write},
-    path::PathBuf,
-};
+use std::{cell::Cell, path::PathBuf};
 
 #[derive(Args)]
 pub struct DetectArgs {
@@ -31,30 +28,28 @@ pub fn run(a: DetectArgs) -> Result<()> {
     let notes_at_open = rec.notes();
     let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
     let cfg = a.core.config(sensor)?;
-    let mut out: Box<dyn Write> = match &a.out {
-        Some(p) => Box::new(BufWriter::new(
-            std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => Box::new(BufWriter::new(std::io::stdout().lock())),
-    };
+    let mut out = output(a.out.as_deref())?;
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
-    let mut write_err: Option<std::io::Error> = None;
+    let mut write_err: Option<anyhow::Error> = None;
+    // Set with `write_err`: ends the events early, as nothing more can be written.
+    let failed = Cell::new(false);
     let mut rec = rec;
     // The progress position is read off the reader between events.
-    let progress = std::cell::Cell::new(0u64);
-    let events = with_position(&mut rec, 65_536, &progress);
+    let progress = Cell::new(0u64);
+    let events = with_position(&mut rec, 65_536, &progress).take_while(|_| !failed.get());
     let summary = detections::run(events, cfg, |d| {
         pb.set_position(progress.get());
         pb.set_prefix(format!("windows {}", d.info.seq + 1));
         if write_err.is_none() {
-            if let Err(e) = writeln!(out, "{}", WindowRecord::from_detection(d).to_json_line()) {
+            if let Err(e) = out.line(&WindowRecord::from_detection(d).to_json_line()) {
                 write_err = Some(e);
+                failed.set(true);
             }
         }
     });
     pb.finish_and_clear();
     if let Some(e) = write_err {
-        return Err(e).context("writing detections");
+        return Err(e.context("writing detections"));
     }
     out.flush().context("writing detections")?;
     if !a.quiet {

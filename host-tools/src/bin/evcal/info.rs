@@ -1,7 +1,7 @@
 //! `evcal info`: what a recording holds (format, sensor, events, time span, event rate over
 //! time, polarity balance), read in one streaming pass.
 
-use crate::common::{progress_bar, ReadArgs};
+use crate::common::{outln, progress_bar, ReadArgs};
 use anyhow::Result;
 use clap::Args;
 use evcal_core::event::SensorSize;
@@ -118,14 +118,15 @@ pub fn run(a: InfoArgs) -> Result<()> {
         None => (None, "unknown"),
     };
     let notes = rec.notes();
-    if a.json {
-        println!("{}", json(&a, &rec, &s, sensor, sensor_from, &notes, error.as_ref()));
+    let printed = if a.json {
+        outln!("{}", json(&a, &rec, &s, sensor, sensor_from, &notes, error.as_ref()))
     } else {
-        print_table(&a, &rec, &s, sensor, sensor_from, &notes);
-    }
+        print_table(&a, &rec, &s, sensor, sensor_from, &notes)
+    };
+    // A damaged file is said even when standard output has closed.
     match error {
         Some(e) => Err(e.into()),
-        None => Ok(()),
+        None => printed,
     }
 }
 
@@ -196,51 +197,62 @@ fn seconds(us: u64) -> String {
     format!("{}.{:06} s", us / 1_000_000, us % 1_000_000)
 }
 
-fn print_table(a: &InfoArgs, rec: &Recording, s: &Summary, sensor: Option<SensorSize>, from: &str, notes: &[String]) {
-    println!("file       {}", a.recording.display());
-    println!("format     {}", rec.format.name());
+fn print_table(
+    a: &InfoArgs,
+    rec: &Recording,
+    s: &Summary,
+    sensor: Option<SensorSize>,
+    from: &str,
+    notes: &[String],
+) -> Result<()> {
+    outln!("file       {}", a.recording.display())?;
+    outln!("format     {}", rec.format.name())?;
     match sensor {
-        Some(z) if from == "file" => println!("sensor     {}x{}", z.width, z.height),
-        Some(z) => println!(
+        Some(z) if from == "file" => outln!("sensor     {}x{}", z.width, z.height)?,
+        Some(z) => outln!(
             "sensor     {}x{} (guessed from the largest x {} and y {}: the file does not say)",
-            z.width, z.height, s.max_x, s.max_y
-        ),
-        None => println!("sensor     unknown"),
+            z.width,
+            z.height,
+            s.max_x,
+            s.max_y
+        )?,
+        None => outln!("sensor     unknown")?,
     }
-    println!("events     {}", thousands(s.events));
+    outln!("events     {}", thousands(s.events))?;
     let (Some(t0), Some(h)) = (s.t_first, &s.hist) else { return print_notes(notes) };
     let d = s.t_last - t0;
-    println!("time       {} .. {} ({} long)", seconds(t0), seconds(s.t_last), seconds(d));
+    outln!("time       {} .. {} ({} long)", seconds(t0), seconds(s.t_last), seconds(d))?;
     if d > 0 {
         let tenths = h.rates(s.t_last, 10);
         let peak = tenths.iter().cloned().fold(0.0, f64::max);
-        println!("rate       {} mean, {} in the busiest tenth", rate(s.events as f64 / (d as f64 * 1e-6)), rate(peak));
+        outln!("rate       {} mean, {} in the busiest tenth", rate(s.events as f64 / (d as f64 * 1e-6)), rate(peak))?;
         let cols = h.rates(s.t_last, SPARK_COLUMNS);
         let top = cols.iter().cloned().fold(0.0, f64::max).max(1e-9);
         const BARS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
         let spark: String = cols.iter().map(|r| BARS[((r / top) * 7.0).round() as usize]).collect();
-        println!("over time  {spark}  (first to last event, {} a column)", seconds(d / SPARK_COLUMNS as u64));
-        println!("by tenth   {}", tenths.iter().map(|r| rate(*r)).collect::<Vec<_>>().join("  "));
+        outln!("over time  {spark}  (first to last event, {} a column)", seconds(d / SPARK_COLUMNS as u64))?;
+        outln!("by tenth   {}", tenths.iter().map(|r| rate(*r)).collect::<Vec<_>>().join("  "))?;
     }
     let on_pct = 100.0 * s.on as f64 / s.events as f64;
-    println!(
+    outln!(
         "polarity   ON {} ({on_pct:.1} %), OFF {} ({:.1} %)",
         thousands(s.on),
         thousands(s.events - s.on),
         100.0 - on_pct
-    );
-    println!("pixels     x 0..={}, y 0..={}", s.max_x, s.max_y);
+    )?;
+    outln!("pixels     x 0..={}, y 0..={}", s.max_x, s.max_y)?;
     if outside(s, sensor) {
-        println!("warning    events lie outside the sensor: the detector will drop them");
+        outln!("warning    events lie outside the sensor: the detector will drop them")?;
     }
     if s.steps_back > 0 {
-        println!("order      {} events earlier than the one before (the detector drops them)", thousands(s.steps_back));
+        outln!("order      {} events earlier than the one before (the detector drops them)", thousands(s.steps_back))?;
     }
-    print_notes(notes);
+    print_notes(notes)
 }
 
-fn print_notes(notes: &[String]) {
+fn print_notes(notes: &[String]) -> Result<()> {
     for n in notes {
-        println!("note       {n}");
+        outln!("note       {n}")?;
     }
+    Ok(())
 }

@@ -127,6 +127,11 @@ fn main() {
         Command::Device(a) => device::run(a),
     };
     if let Err(e) = r {
+        if e.chain().any(|c| c.is::<common::StdoutClosed>()) {
+            // The reader has what it wanted (`evcal ... | head`): a quiet, successful end,
+            // as the shell's own tools give.
+            return;
+        }
         eprintln!("evcal: error: {e:#}");
         std::process::exit(1);
     }

@@ -9,7 +9,7 @@ use evcal_host::link::{
     replay::{replay, ReplayOptions, ReplayReport},
     Progress,
 };
-use std::{io::Write, path::PathBuf, time::Duration};
+use std::{path::PathBuf, time::Duration};
 
 #[derive(Args)]
 pub struct ReplayArgs {
@@ -63,11 +63,15 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);
     let events = with_position(&mut rec, 16_384, &progress);
-    let mut write_err: Option<std::io::Error> = None;
+    let mut write_err: Option<anyhow::Error> = None;
     let result = replay(&mut link, events, cfg, &opts, &stop, &mut |p| match p {
         Progress::Window(w) => {
             if write_err.is_none() {
-                write_err = writeln!(out, "{}", w.to_json_line()).err();
+                write_err = out.line(&w.to_json_line()).err();
+                if write_err.is_some() {
+                    // Nothing more can be written: stop as Ctrl-C would.
+                    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+                }
             }
         }
         Progress::Status(r) => {
@@ -77,10 +81,11 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     });
     pb.finish_and_clear();
     // Whatever happened, keep what arrived.
-    out.flush().context("writing detections")?;
+    let flushed = out.flush();
     if let Some(e) = write_err {
-        return Err(e).context("writing detections");
+        return Err(e.context("writing detections"));
     }
+    flushed.context("writing detections")?;
     let r = result?;
     if !a.quiet {
         summary(&r);
