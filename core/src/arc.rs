@@ -94,6 +94,59 @@ pub struct Circle {
     pub rms: f32,
 }
 
+/// One term of [`Moments::about`]'s binomial expansion: `out[slot] += binomial · (−Δx)^px ·
+/// (−Δy)^py · sums[src]`.
+#[derive(Clone, Copy)]
+struct ShiftTerm {
+    slot: u8,
+    binomial: u8,
+    px: u8,
+    py: u8,
+    src: u8,
+}
+
+/// Terms of `(x − Δx)ᵃ (y − Δy)ᵇ = Σᵢⱼ C(a,i) C(b,j) xⁱ yʲ (−Δx)ᵃ⁻ⁱ (−Δy)ᵇ⁻ʲ` for every power
+/// sum, slot by slot and within a slot by i, then j: listed once at compile time, so that the
+/// shift is a flat loop (the product of the two binomials is exact in `f32`).
+const SHIFT_TERMS: [ShiftTerm; 120] = shift_terms();
+
+const fn shift_terms() -> [ShiftTerm; 120] {
+    const fn binomial(n: usize, k: usize) -> usize {
+        let mut r = 1;
+        let mut i = 0;
+        while i < k {
+            r = r * (n - i) / (i + 1);
+            i += 1;
+        }
+        r
+    }
+    let mut out = [ShiftTerm { slot: 0, binomial: 0, px: 0, py: 0, src: 0 }; 120];
+    let mut n = 0;
+    let mut slot = 0;
+    while slot < POWERS.len() {
+        let (a, b, c) = (POWERS[slot].0 as usize, POWERS[slot].1 as usize, POWERS[slot].2 as usize);
+        let mut i = 0;
+        while i <= a {
+            let mut j = 0;
+            while j <= b {
+                out[n] = ShiftTerm {
+                    slot: slot as u8,
+                    binomial: (binomial(a, i) * binomial(b, j)) as u8,
+                    px: (a - i) as u8,
+                    py: (b - j) as u8,
+                    src: at(i, j, c) as u8,
+                };
+                n += 1;
+                j += 1;
+            }
+            i += 1;
+        }
+        slot += 1;
+    }
+    assert!(n == 120, "every term listed");
+    out
+}
+
 /// The rows of the moving-circle fit as exponents: `x, y, τx, τy, 1, τ`.
 const ROWS: [(usize, usize, usize); 6] = [(1, 0, 0), (0, 1, 0), (1, 0, 1), (0, 1, 1), (0, 0, 0), (0, 0, 1)];
 
@@ -150,23 +203,11 @@ impl Moments {
             px[k] = px[k - 1] * -dx;
             py[k] = py[k - 1] * -dy;
         }
-        const BINOMIAL: [[f32; 5]; 5] = [
-            [1.0, 0.0, 0.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0, 0.0, 0.0],
-            [1.0, 2.0, 1.0, 0.0, 0.0],
-            [1.0, 3.0, 3.0, 1.0, 0.0],
-            [1.0, 4.0, 6.0, 4.0, 1.0],
-        ];
         let mut out = [0.0f32; 31];
-        for (slot, &(a, b, c)) in out.iter_mut().zip(POWERS.iter()) {
-            let (a, b, c) = (usize::from(a), usize::from(b), usize::from(c));
-            let mut s = 0.0f32;
-            for i in 0..=a {
-                for j in 0..=b {
-                    s += BINOMIAL[a][i] * BINOMIAL[b][j] * px[a - i] * py[b - j] * self.sums[at(i, j, c)];
-                }
-            }
-            *slot = s;
+        for t in &SHIFT_TERMS {
+            let (slot, px, py, src) =
+                (usize::from(t.slot), px[usize::from(t.px)], py[usize::from(t.py)], usize::from(t.src));
+            out[slot] += f32::from(t.binomial) * px * py * self.sums[src];
         }
         out
     }

@@ -484,6 +484,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             // each side of such a gap to an end.
             for a in above {
                 let s = span[usize::from(b.y - a.y)];
+                // Events of the row above before `offered` have been offered this row's
+                // first core point within reach of them (spatial runs).
+                let mut offered = usize::from(a.start);
                 for (i, lo, hi) in spans(events, b, *a, s) {
                     *work = work.wrapping_add(1);
                     if self.labels[i] & CORE == 0 {
@@ -495,6 +498,20 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                                 self.union(i, k);
                             }
                         }
+                        // The border points of the row above look down at this one: their
+                        // lowest-index core neighbour here is the first core point (in
+                        // index order) whose span holds them. Spans only move forward, so
+                        // those not yet offered one are exactly the span's events from
+                        // `offered` on.
+                        for j in lo.max(offered)..hi {
+                            if self.labels[j] & CORE == 0 {
+                                *work = work.wrapping_add(1);
+                                if i < usize::from(self.labels[j]) {
+                                    self.labels[j] = i as u16;
+                                }
+                            }
+                        }
+                        offered = offered.max(hi);
                     } else {
                         for j in lo..hi {
                             if self.labels[j] & CORE != 0 && near_t(i, j) {
@@ -503,11 +520,13 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                         }
                     }
                 }
-                // The border points of the row above look down at this one.
-                for (i, lo, hi) in spans(events, *a, b, s) {
-                    if self.labels[i] & CORE == 0 {
-                        *work = work.wrapping_add(1);
-                        self.border_candidate(events, i, lo, hi, m);
+                if !spatial {
+                    // The border points of the row above look down at this one.
+                    for (i, lo, hi) in spans(events, *a, b, s) {
+                        if self.labels[i] & CORE == 0 {
+                            *work = work.wrapping_add(1);
+                            self.border_candidate(events, i, lo, hi, m);
+                        }
                     }
                 }
             }
