@@ -22,7 +22,7 @@
 //! final solve then runs on centres moved forward by `δ`.
 
 use crate::calib::{self, View};
-use crate::export::ViewOrigin;
+use crate::export::{view_residuals, ViewOrigin};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 
@@ -169,15 +169,11 @@ fn trimmed(views: &[View], dirs: &[Vec<[f64; 2]>], cal: &calib::Calibration) -> 
     let mut out = (Vec::new(), Vec::new());
     for r in &cal.views {
         let (Some(v), Some(d)) = (views.get(r.view), dirs.get(r.view)) else { continue };
-        let rot = nalgebra::Rotation3::from_scaled_axis(nalgebra::Vector3::from(r.rvec));
-        let t = nalgebra::Vector3::from(r.tvec);
         let (mut view, mut dir) = (View { object: Vec::new(), image: Vec::new() }, Vec::new());
-        for ((o, m), d) in v.object.iter().zip(&v.image).zip(d) {
-            let near = cal
-                .intrinsics
-                .project(&(rot * nalgebra::Vector3::from(*o) + t))
-                .is_some_and(|p| (p[0] - m[0]).hypot(p[1] - m[1]) <= limit);
-            if near {
+        let residuals = view_residuals(v, &cal.intrinsics, r);
+        for (((o, m), d), e) in v.object.iter().zip(&v.image).zip(d).zip(residuals) {
+            // A point behind the camera has a NaN residual: it is left out too.
+            if e[0].hypot(e[1]) <= limit {
                 view.object.push(*o);
                 view.image.push(*m);
                 dir.push(*d);
