@@ -42,6 +42,13 @@ const NONE: u16 = 0x7FFF;
 /// comparing every pair of events.
 pub const MAX_REACH_ROWS: usize = 32;
 
+/// Cells (`u16`, 16 KiB, on the stack while a window is clustered) of the column tables of
+/// the spatial sweep: one table per row within reach of the row being visited, above and
+/// below, each as wide as the events' columns plus the neighbourhood either side. The
+/// defaults on a DAVIS346 take 7 rows of 357 cells. Sweeps that need more (wider sensors or
+/// neighbourhoods) and ST-DBSCAN walk cursors along the rows instead, as exactly but slower.
+pub const TABLE_CELLS: usize = 8192;
+
 /// DBSCAN settings, in normalised coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -295,6 +302,135 @@ impl Rows {
     }
 }
 
+/// Most rows whose column tables are kept at once: those within reach of the row being
+/// linked, and of the rows being counted ahead of it.
+const SLOTS: usize = 3 * MAX_REACH_ROWS + 1;
+
+/// Column tables of the rows around the rows being visited. The table of a row maps a column
+/// `c` (shifted by `pad`, the widest span, so that every lookup stays inside) to the index of
+/// the row's first event at column `c` or beyond, the row's end where there is none. Over a
+/// span of columns, the difference of two lookups counts the row's events in it, and the
+/// first lookup is the lowest-index one.
+///
+/// Rows are built ahead of their visits into slot `y mod (3·reach + 1)`, which only rows
+/// more than `3·reach` below can take over: by then neither the row being linked nor the
+/// rows being counted (at most `reach` below it) can reach it.
+struct Tables<'c> {
+    cells: &'c mut [u16; TABLE_CELLS],
+    /// Row held by each slot ([`NO_ROW`]: none yet), and its events.
+    keys: [u32; SLOTS],
+    rows: [Row; SLOTS],
+    slots: usize,
+    stride: usize,
+    min_x: u16,
+    pad: usize,
+    /// First event of the next row to build.
+    next: usize,
+}
+
+/// The key of a slot of [`Tables`] that holds no row: no row distance from a row makes it.
+const NO_ROW: u32 = 0xFFFF_0000;
+
+/// A row within reach in [`Tables`]: the offsets in the cells of the lookups for an event at
+/// column offset 0 (the span's start and end, and the column right of the event's own).
+#[derive(Clone, Copy, Default)]
+struct Near {
+    lo: usize,
+    mid: usize,
+    hi: usize,
+}
+
+impl<'c> Tables<'c> {
+    /// Tables for `reach` rows either side, events whose columns start at `min_x` and span
+    /// `width`, and spans of at most `pad` columns either side; `None` when they do not fit
+    /// in [`TABLE_CELLS`].
+    fn new(cells: &'c mut [u16; TABLE_CELLS], reach: usize, min_x: u16, width: usize, pad: usize) -> Option<Self> {
+        let slots = 3 * reach + 1;
+        let stride = width + 2 * pad + 1;
+        if slots > SLOTS || slots * stride > TABLE_CELLS {
+            return None;
+        }
+        Some(Self { cells, keys: [NO_ROW; SLOTS], rows: [Row::default(); SLOTS], slots, stride, min_x, pad, next: 0 })
+    }
+
+    /// The cell at `i`. Every lookup is inside the tables by construction; the mask only
+    /// spares the bounds check (`TABLE_CELLS` is a power of two).
+    #[inline(always)]
+    fn at(&self, i: usize) -> usize {
+        usize::from(self.cells[i % TABLE_CELLS])
+    }
+
+    /// Builds the table of every row up to row `last`.
+    #[inline(never)]
+    fn build_to(&mut self, events: &[WindowEvent], last: u32) {
+        while let Some(e) = events.get(self.next) {
+            if u32::from(e.y) > last {
+                break;
+            }
+            let (start, y) = (self.next, e.y);
+            let mut end = start + 1;
+            while end < events.len() && events[end].y == y {
+                end += 1;
+            }
+            self.next = end;
+            let slot = usize::from(y) % self.slots;
+            self.keys[slot] = u32::from(y);
+            self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
+            let base = slot * self.stride;
+            let mut c = base;
+            for k in start..end {
+                let to = base + usize::from(events[k].x.wrapping_sub(self.min_x)) + self.pad + 1;
+                fill(self.cells, c, to, k as u16);
+                c = c.max(to);
+            }
+            fill(self.cells, c, base + self.stride, end as u16);
+        }
+    }
+
+    /// Row `y` (built), and the built rows within reach of it, in `order`'s row distances,
+    /// into `out`: returns how many, and how many of them are above row `y`.
+    fn around(&self, y: u16, order: &[i32], span: &[u16; MAX_REACH_ROWS + 1], out: &mut [Near]) -> (Row, usize, usize) {
+        let (mut len, mut above) = (0, 0);
+        let own = usize::from(y) % self.slots;
+        for &d in order {
+            // `slots` exceeds twice the reach: one wrap either way at most.
+            let mut slot = (own + self.slots).wrapping_add_signed(d as isize);
+            if slot >= self.slots {
+                slot -= self.slots;
+            }
+            if slot >= self.slots {
+                slot -= self.slots;
+            }
+            let (Some(&key), Some(&s), Some(near)) =
+                (self.keys.get(slot), span.get(d.unsigned_abs() as usize), out.get_mut(len))
+            else {
+                break;
+            };
+            if key != (i32::from(y) + d) as u32 {
+                continue;
+            }
+            let (s, base) = (usize::from(s), slot * self.stride + self.pad);
+            *near = Near { lo: base - s, mid: base + 1, hi: base + s + 1 };
+            len += 1;
+            above += usize::from(d < 0);
+        }
+        (self.rows[own], len, above)
+    }
+}
+
+/// Sets `cells[from..to]` (nothing when empty) to `v`, four at a time.
+fn fill(cells: &mut [u16], from: usize, to: usize, v: u16) {
+    if let Some(part) = cells.get_mut(from..to) {
+        let mut quads = part.chunks_exact_mut(4);
+        for q in &mut quads {
+            q.copy_from_slice(&[v; 4]);
+        }
+        for c in quads.into_remainder() {
+            *c = v;
+        }
+    }
+}
+
 /// For each event of `from` (in column order), the span of events of `to` within `s` columns
 /// of it: `(index in from, lo, hi)`. Both rows are sorted by column, so the span slides.
 fn spans(events: &[WindowEvent], from: Row, to: Row, s: u16) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
@@ -386,14 +522,19 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let events = &mut events[..n];
         self.len = n;
         self.clusters = 0;
-        let duration = events.iter().map(|e| e.dt_us).max().unwrap_or(0);
+        let (mut duration, mut min_x, mut max_x) = (0, u16::MAX, 0);
+        for e in events.iter() {
+            duration = duration.max(e.dt_us);
+            min_x = min_x.min(e.x);
+            max_x = max_x.max(e.x);
+        }
         let m = Metric::new(sensor, cfg, duration);
         sort_by_pixel(events);
         let min_pts = usize::from(cfg.min_pts.max(1));
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
             self.pairwise(events, &m, min_pts, &mut stats, &mut work);
-        } else {
+        } else if m.dt_max.is_some() || !self.by_tables(events, &m, min_pts, (min_x, max_x), &mut stats, &mut work) {
             self.by_rows(events, &m, min_pts, &mut stats, &mut work);
         }
         for l in &mut self.labels[..n] {
@@ -401,6 +542,128 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         }
         stats.distance_checks = work;
         stats
+    }
+
+    /// Spatial DBSCAN by column tables (see [`Tables`]), in one sweep down the rows: tables
+    /// are built `2·reach` rows ahead of the row being linked, core points counted `reach`
+    /// rows ahead. `false`, having done nothing, when the tables do not fit.
+    #[inline(never)]
+    fn by_tables(
+        &mut self,
+        events: &[WindowEvent],
+        m: &Metric,
+        min_pts: usize,
+        (min_x, max_x): (u16, u16),
+        stats: &mut ClusterStats,
+        work: &mut u32,
+    ) -> bool {
+        let n = events.len();
+        let reach = m.reach_y as usize;
+        if reach > MAX_REACH_ROWS {
+            return false;
+        }
+        let mut span = [0u16; MAX_REACH_ROWS + 1];
+        for (dy, s) in span.iter_mut().enumerate().take(reach + 1) {
+            *s = m.span(dy as u64).min(u64::from(u16::MAX)) as u16;
+        }
+        let width = usize::from(max_x.saturating_sub(min_x)) + 1;
+        let mut cells = [0u16; TABLE_CELLS];
+        let Some(mut t) = Tables::new(&mut cells, reach, min_x, width, usize::from(span[0])) else { return false };
+        // Row distances: nearest first for counting (most core points are known within a
+        // few rows), from the top down for border points (lowest index first), and above.
+        let mut nearest = [0i32; 2 * MAX_REACH_ROWS + 1];
+        let mut top_down = [0i32; 2 * MAX_REACH_ROWS + 1];
+        let r = reach as i32;
+        for d in 0..=2 * r {
+            top_down[d as usize] = d - r;
+            nearest[d as usize] = if d % 2 == 1 { -(d + 1) / 2 } else { d / 2 };
+        }
+        let (nearest, top_down) = (&nearest[..2 * reach + 1], &top_down[..2 * reach + 1]);
+        let mut near = [Near::default(); 2 * MAX_REACH_ROWS + 1];
+        let s0 = span[0];
+
+        let (mut counted, mut linked) = (0, 0);
+        let (mut queries, mut core_points) = (0u32, 0u16);
+        while let Some(e) = events.get(linked) {
+            let y = u32::from(e.y);
+            // 1. Core points, up to `reach` rows below the row to link: the events of each
+            //    row within reach that a span holds are two lookups.
+            while let Some(c) = events.get(counted).filter(|c| u32::from(c.y) <= y + reach as u32) {
+                t.build_to(events, u32::from(c.y) + reach as u32);
+                let (row, len, _) = t.around(c.y, nearest, &span, &mut near);
+                for k in usize::from(row.start)..usize::from(row.end) {
+                    let x = usize::from(events[k].x.wrapping_sub(min_x));
+                    let mut count = 0;
+                    for nr in &near[..len] {
+                        queries = queries.wrapping_add(1);
+                        count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
+                        if count >= min_pts {
+                            break;
+                        }
+                    }
+                    let core = count >= min_pts;
+                    core_points += u16::from(core);
+                    self.labels[k] = k as u16 | if core { CORE } else { 0 };
+                }
+                counted = usize::from(row.end).max(counted + 1);
+            }
+
+            // 2. Links and border points. Each core point joins the previous one in its row
+            //    when they are neighbours, and, in each row above, the first core point of
+            //    its span and the first one right of its column: the row's chain joins the
+            //    core points of either half of a span (their gaps are within the same-row
+            //    reach). A border point takes the first core point of the first span, from
+            //    the top down, that holds one.
+            let (row, len, above) = t.around(e.y, top_down, &span, &mut near);
+            let near = &near[..len];
+            let mut prev: Option<(usize, u16)> = None;
+            for k in usize::from(row.start)..usize::from(row.end) {
+                let ex = events[k].x;
+                let x = usize::from(ex.wrapping_sub(min_x));
+                if self.labels[k] & CORE != 0 {
+                    if let Some((p, px)) = prev {
+                        if ex - px <= s0 {
+                            self.union(p, k);
+                        }
+                    }
+                    prev = Some((k, ex));
+                    for nr in &near[..above] {
+                        queries = queries.wrapping_add(1);
+                        let hi = t.at(nr.hi + x);
+                        let Some(j) = self.first_core(t.at(nr.lo + x), hi) else { continue };
+                        self.union(j, k);
+                        let mid = t.at(nr.mid + x);
+                        if j < mid {
+                            if let Some(j) = self.first_core(mid, hi) {
+                                self.union(j, k);
+                            }
+                        }
+                    }
+                } else {
+                    let mut best = NONE;
+                    for nr in near {
+                        queries = queries.wrapping_add(1);
+                        if let Some(j) = self.first_core(t.at(nr.lo + x), t.at(nr.hi + x)) {
+                            best = j as u16;
+                            break;
+                        }
+                    }
+                    self.labels[k] = best;
+                }
+            }
+            linked = usize::from(row.end).max(linked + 1);
+        }
+        stats.core = core_points;
+        *work = queries;
+        self.number(n, stats);
+        self.settle_borders(n, stats);
+        true
+    }
+
+    /// The first core point of `events[lo..hi]`.
+    #[inline]
+    fn first_core(&self, lo: usize, hi: usize) -> Option<usize> {
+        (lo..hi).find(|&j| self.labels.get(j).is_some_and(|l| l & CORE != 0))
     }
 
     /// DBSCAN over pairs of neighbouring rows (see the module's documentation).
@@ -584,6 +847,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
 
     /// 3. Numbers the clusters in index order. A core point's parent has a lower index and so
     ///    already holds its component's label. Core labels become `cluster | CORE`.
+    #[inline(never)]
     fn number(&mut self, n: usize, stats: &mut ClusterStats) {
         let mut clusters: usize = 0;
         let mut found: usize = 0;
@@ -613,6 +877,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
 
     /// Turns each border point's best core neighbour (an index, or [`NONE`]) into that core
     /// point's cluster, or noise.
+    #[inline(never)]
     fn settle_borders(&mut self, n: usize, stats: &mut ClusterStats) {
         for i in 0..n {
             let l = self.labels[i];
@@ -741,11 +1006,15 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         }
     }
 
+    #[inline]
     fn union(&mut self, a: usize, b: usize) {
         // Most links join points already in one set, often through the same parent.
-        if self.labels[a] & MASK == self.labels[b] & MASK {
-            return;
+        if self.labels[a] & MASK != self.labels[b] & MASK {
+            self.union_roots(a, b);
         }
+    }
+
+    fn union_roots(&mut self, a: usize, b: usize) {
         let ra = self.find(a);
         let rb = self.find(b);
         if ra == rb {
