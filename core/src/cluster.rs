@@ -208,6 +208,68 @@ pub fn sort_by_pixel(events: &mut [WindowEvent]) {
     }
 }
 
+/// Most distinct columns, and rows, that [`sort_in_time_by_pixel`] counts events in.
+const SORT_BUCKETS: usize = 1024;
+
+/// Sorts events that are in time order into [`pixel_order`], as [`sort_by_pixel`] does but
+/// in fewer steps: a stable counting sort by column, then by row, so that the events of a
+/// pixel stay in time order. `order` and `pos` (at least one entry per event) are scratch.
+/// `bounds` are the events' least and greatest column and row. Returns `false`, having done
+/// nothing, when the columns or rows span more than [`SORT_BUCKETS`] or the scratch is short.
+fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mut [u16], bounds: [u16; 4]) -> bool {
+    let n = events.len();
+    let [min_x, max_x, min_y, max_y] = bounds;
+    let (w, h) = (usize::from(max_x.wrapping_sub(min_x)) + 1, usize::from(max_y.wrapping_sub(min_y)) + 1);
+    if n < 2 {
+        return true;
+    }
+    let (Some(order), Some(pos)) = (order.get_mut(..n), pos.get_mut(..n)) else { return false };
+    if w > SORT_BUCKETS || h > SORT_BUCKETS || n > usize::from(u16::MAX) {
+        return false;
+    }
+    // `order` lists the events by column, in time within one.
+    let mut next = [0u16; SORT_BUCKETS + 1];
+    for e in events.iter() {
+        let b = usize::from(e.x - min_x) + 1;
+        next[b] = next[b].wrapping_add(1);
+    }
+    for b in 1..=w {
+        next[b] = next[b].wrapping_add(next[b - 1]);
+    }
+    for (i, e) in events.iter().enumerate() {
+        let b = &mut next[usize::from(e.x - min_x)];
+        order[usize::from(*b)] = i as u16;
+        *b = b.wrapping_add(1);
+    }
+    // Taken by row in that order, each event's place in the result.
+    next[..=h].fill(0);
+    for e in events.iter() {
+        let b = usize::from(e.y - min_y) + 1;
+        next[b] = next[b].wrapping_add(1);
+    }
+    for b in 1..=h {
+        next[b] = next[b].wrapping_add(next[b - 1]);
+    }
+    for &i in order.iter() {
+        let i = usize::from(i);
+        let b = &mut next[usize::from(events[i].y - min_y)];
+        pos[i] = *b;
+        *b = b.wrapping_add(1);
+    }
+    // Each swap puts one event in its place for good.
+    for i in 0..n {
+        loop {
+            let j = usize::from(pos[i]);
+            if j == i || j >= n {
+                break;
+            }
+            events.swap(i, j);
+            pos.swap(i, j);
+        }
+    }
+    true
+}
+
 /// One in-place radix pass: reorders `events` by `key` and writes the 256 buckets'
 /// boundaries (`bounds[k]..bounds[k + 1]`). `events` holds fewer than 65 536 events.
 fn flag_pass(events: &mut [WindowEvent], key: impl Fn(&WindowEvent) -> u8, bounds: &mut [u16; 257]) {
@@ -522,19 +584,30 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let events = &mut events[..n];
         self.len = n;
         self.clusters = 0;
-        let (mut duration, mut min_x, mut max_x) = (0, u16::MAX, 0);
+        let (mut duration, mut in_time) = (0, true);
+        let (mut min_x, mut max_x, mut min_y, mut max_y) = (u16::MAX, 0, u16::MAX, 0);
         for e in events.iter() {
+            in_time &= e.dt_us >= duration;
             duration = duration.max(e.dt_us);
             min_x = min_x.min(e.x);
             max_x = max_x.max(e.x);
+            min_y = min_y.min(e.y);
+            max_y = max_y.max(e.y);
         }
         let m = Metric::new(sensor, cfg, duration);
-        sort_by_pixel(events);
+        // Scratch for the sort, then the column tables of the sweep.
+        let mut cells = [0u16; TABLE_CELLS];
+        let bounds = [min_x, max_x, min_y, max_y];
+        if !(in_time && sort_in_time_by_pixel(events, &mut self.labels, &mut cells, bounds)) {
+            sort_by_pixel(events);
+        }
         let min_pts = usize::from(cfg.min_pts.max(1));
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
             self.pairwise(events, &m, min_pts, &mut stats, &mut work);
-        } else if m.dt_max.is_some() || !self.by_tables(events, &m, min_pts, (min_x, max_x), &mut stats, &mut work) {
+        } else if m.dt_max.is_some()
+            || !self.by_tables(events, &mut cells, &m, min_pts, (min_x, max_x), &mut stats, &mut work)
+        {
             self.by_rows(events, &m, min_pts, &mut stats, &mut work);
         }
         for l in &mut self.labels[..n] {
@@ -551,6 +624,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     fn by_tables(
         &mut self,
         events: &[WindowEvent],
+        cells: &mut [u16; TABLE_CELLS],
         m: &Metric,
         min_pts: usize,
         (min_x, max_x): (u16, u16),
@@ -567,8 +641,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             *s = m.span(dy as u64).min(u64::from(u16::MAX)) as u16;
         }
         let width = usize::from(max_x.saturating_sub(min_x)) + 1;
-        let mut cells = [0u16; TABLE_CELLS];
-        let Some(mut t) = Tables::new(&mut cells, reach, min_x, width, usize::from(span[0])) else { return false };
+        let Some(mut t) = Tables::new(cells, reach, min_x, width, usize::from(span[0])) else { return false };
         // Row distances: nearest first for counting (most core points are known within a
         // few rows), from the top down for border points (lowest index first), and above.
         let mut nearest = [0i32; 2 * MAX_REACH_ROWS + 1];
