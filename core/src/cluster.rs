@@ -5,14 +5,21 @@
 //! (ST-DBSCAN) also requires `|Δt| ≤ eps_t · T`, with `T` the window's duration.
 //!
 //! The grid is the sensor's own pixel grid: the window's events are sorted in place by
-//! pixel (row, then column), which makes every row of the grid a contiguous run. The
-//! eps-neighbourhood of a pixel covers a few rows (`⌊eps·H⌋` either side) and, in each, one
-//! contiguous span of columns; and as the events are visited in sorted order, the start and
-//! end of each such span only ever move forward. So a sweep that keeps two cursors per
-//! neighbouring row counts every event's neighbours exactly, in constant time per row,
-//! without comparing pairs of events: the work is linear in the events (after the sort) and
-//! the only memory is the events and one label per event. Border points and the links
-//! between core points come from the same spans.
+//! pixel (row, then column, then time), which makes every row of the grid a contiguous run
+//! (a window's events come in time order, so two stable counting passes, by column and then
+//! by row, do it; other input takes a radix and insertion sort). The eps-neighbourhood of a
+//! pixel covers a few rows (`⌊eps·H⌋` either side) and, in each, one contiguous span of
+//! columns. One sweep down the rows keeps, for each row within reach, a table from column
+//! to the index of the row's first event at or right of it (see [`TABLE_CELLS`]): the
+//! events of a span are then two lookups apart, which counts every event's neighbours
+//! exactly without comparing pairs of events, and the first of them is the span's
+//! lowest-index event, from which the links between core points and each border point's
+//! core neighbour follow. The work is linear in the events and the rows (after the sort);
+//! the memory is the events, one label per event and the tables, on the stack.
+//!
+//! ST-DBSCAN, and neighbourhoods whose tables would not fit, walk two cursors per
+//! neighbouring row instead: as the events are visited in sorted order, the start and end of
+//! each span only ever move forward, so the counts stay exact at constant cost per row.
 //!
 //! The result is exactly that of textbook DBSCAN on the same (reordered) events, with one
 //! rule made explicit so that it does not depend on the visiting order: a border point joins
@@ -84,7 +91,8 @@ pub struct ClusterStats {
     pub core: u16,
     /// Events labelled [`NOISE`].
     pub noise: u16,
-    /// Pairwise distance checks made: the work of the neighbour queries.
+    /// Neighbourhood queries made: pairwise distance checks, or, in the sweeps, spans of a
+    /// neighbouring row looked up. The work of the clustering.
     pub distance_checks: u32,
 }
 
@@ -535,7 +543,8 @@ fn count_spans(events: &[WindowEvent], counts: &mut [u16], from: Row, to: Row, s
 
 /// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
 /// inline: a label per event and a range per cluster, `2N + 4C` bytes (the events
-/// themselves are the caller's).
+/// themselves are the caller's), and, while [`cluster`](Self::cluster) runs, the sort's
+/// scratch and the sweep's tables on the stack ([`TABLE_CELLS`], 16 KiB).
 ///
 /// `N` must be below 32 766 (checked at compile time).
 ///
@@ -605,10 +614,15 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
             self.pairwise(events, &m, min_pts, &mut stats, &mut work);
-        } else if m.dt_max.is_some()
-            || !self.by_tables(events, &mut cells, &m, min_pts, (min_x, max_x), &mut stats, &mut work)
-        {
-            self.by_rows(events, &m, min_pts, &mut stats, &mut work);
+        } else {
+            let tables = match m.dt_max {
+                None => self.by_tables(events, &mut cells, &m, min_pts, (min_x, max_x), &mut stats),
+                Some(_) => None,
+            };
+            match tables {
+                Some(queries) => work = queries,
+                None => self.by_rows(events, &m, min_pts, &mut stats, &mut work),
+            }
         }
         for l in &mut self.labels[..n] {
             *l &= MASK;
@@ -619,7 +633,8 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
 
     /// Spatial DBSCAN by column tables (see [`Tables`]), in one sweep down the rows: tables
     /// are built `2·reach` rows ahead of the row being linked, core points counted `reach`
-    /// rows ahead. `false`, having done nothing, when the tables do not fit.
+    /// rows ahead. Returns the neighbourhood queries made, or `None`, having done nothing,
+    /// when the tables do not fit in `cells`.
     #[inline(never)]
     fn by_tables(
         &mut self,
@@ -629,19 +644,18 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         min_pts: usize,
         (min_x, max_x): (u16, u16),
         stats: &mut ClusterStats,
-        work: &mut u32,
-    ) -> bool {
+    ) -> Option<u32> {
         let n = events.len();
         let reach = m.reach_y as usize;
         if reach > MAX_REACH_ROWS {
-            return false;
+            return None;
         }
         let mut span = [0u16; MAX_REACH_ROWS + 1];
         for (dy, s) in span.iter_mut().enumerate().take(reach + 1) {
             *s = m.span(dy as u64).min(u64::from(u16::MAX)) as u16;
         }
         let width = usize::from(max_x.saturating_sub(min_x)) + 1;
-        let Some(mut t) = Tables::new(cells, reach, min_x, width, usize::from(span[0])) else { return false };
+        let mut t = Tables::new(cells, reach, min_x, width, usize::from(span[0]))?;
         // Row distances: nearest first for counting (most core points are known within a
         // few rows), from the top down for border points (lowest index first), and above.
         let mut nearest = [0i32; 2 * MAX_REACH_ROWS + 1];
@@ -727,10 +741,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             linked = usize::from(row.end).max(linked + 1);
         }
         stats.core = core_points;
-        *work = queries;
         self.number(n, stats);
         self.settle_borders(n, stats);
-        true
+        Some(queries)
     }
 
     /// The first core point of `events[lo..hi]`.
@@ -1224,6 +1237,14 @@ mod test {
     }
 
     #[test]
+    fn default_neighbourhood_on_a_davis346_takes_the_tables() {
+        let m = Metric::new(SensorSize::DAVIS346, &ClusterConfig::default(), 1000);
+        let mut cells = [0u16; TABLE_CELLS];
+        let reach = m.reach_y as usize;
+        assert!(Tables::new(&mut cells, reach, 0, 346, m.span(0) as usize).is_some());
+    }
+
+    #[test]
     fn group_makes_clusters_contiguous() {
         let sensor = SensorSize::DAVIS346;
         let mut ev = ring(50.0, 60.0, 6.0, 70, 0, 5);
@@ -1284,6 +1305,27 @@ mod test {
         }
 
         #[test]
+        fn counting_sort_sorts_events_in_time(raw in prop::collection::vec((0u16..1100, 0u16..700, 0u32..50), 0..2000)) {
+            let mut ev: Vec<WindowEvent> = raw.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
+            ev.sort_by_key(|e| e.dt_us);
+            let mut want = ev.clone();
+            want.sort_by_key(pixel_order);
+            let bounds = [
+                ev.iter().map(|e| e.x).min().unwrap_or(0),
+                ev.iter().map(|e| e.x).max().unwrap_or(0),
+                ev.iter().map(|e| e.y).min().unwrap_or(0),
+                ev.iter().map(|e| e.y).max().unwrap_or(0),
+            ];
+            let (mut order, mut pos) = (vec![0u16; ev.len()], vec![0u16; ev.len()]);
+            let before = ev.clone();
+            if sort_in_time_by_pixel(&mut ev, &mut order, &mut pos, bounds) {
+                prop_assert_eq!(ev, want);
+            } else {
+                prop_assert_eq!(ev, before);
+            }
+        }
+
+        #[test]
         fn wide_neighbourhoods_equal_brute_force(
             ev in arb_events(150, 346, 260),
             eps in 0.12f32..0.6,
@@ -1305,6 +1347,10 @@ mod test {
             // Few cluster slots force dropped clusters; more keep them all.
             check_equal::<400, 16>(&ev, SensorSize::DAVIS346, &cfg);
             check_equal::<400, 64>(&ev, SensorSize::DAVIS346, &cfg);
+            // In time order, as windows come, the events take the counting sort.
+            let mut timed = ev.clone();
+            timed.sort_by_key(|e| e.dt_us);
+            check_equal::<400, 64>(&timed, SensorSize::DAVIS346, &cfg);
         }
 
         #[test]
