@@ -678,17 +678,22 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             while let Some(c) = events.get(counted).filter(|c| u32::from(c.y) <= y + reach as u32) {
                 t.build_to(events, u32::from(c.y) + reach as u32);
                 let (row, len, _) = t.around(c.y, nearest, &span, &mut near);
+                // Events of one pixel share their neighbourhood.
+                let (mut last_x, mut core) = (usize::MAX, false);
                 for k in usize::from(row.start)..usize::from(row.end) {
                     let x = usize::from(events[k].x.wrapping_sub(min_x));
-                    let mut count = 0;
-                    for nr in &near[..len] {
-                        queries = queries.wrapping_add(1);
-                        count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
-                        if count >= min_pts {
-                            break;
+                    if x != last_x {
+                        last_x = x;
+                        let mut count = 0;
+                        for nr in &near[..len] {
+                            queries = queries.wrapping_add(1);
+                            count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
+                            if count >= min_pts {
+                                break;
+                            }
                         }
+                        core = count >= min_pts;
                     }
-                    let core = count >= min_pts;
                     core_points += u16::from(core);
                     self.labels[k] = k as u16 | if core { CORE } else { 0 };
                 }
@@ -708,12 +713,25 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 let ex = events[k].x;
                 let x = usize::from(ex.wrapping_sub(min_x));
                 if self.labels[k] & CORE != 0 {
-                    if let Some((p, px)) = prev {
-                        if ex - px <= s0 {
-                            self.union(p, k);
-                        }
-                    }
+                    let chained = prev.filter(|&(_, px)| ex - px <= s0);
                     prev = Some((k, ex));
+                    if let Some((p, px)) = chained {
+                        self.union(p, k);
+                        // The core points of the spans of the previous core point are in its
+                        // set already; those of this span beyond are within the same-row
+                        // reach of each other, so joined by their row's chain.
+                        let px = usize::from(px.wrapping_sub(min_x));
+                        for nr in &near[..above] {
+                            let (lo, hi) = ((nr.lo + x).max(nr.hi + px), nr.hi + x);
+                            if lo < hi {
+                                queries = queries.wrapping_add(1);
+                                if let Some(j) = self.first_core(t.at(lo), t.at(hi)) {
+                                    self.union(j, k);
+                                }
+                            }
+                        }
+                        continue;
+                    }
                     for nr in &near[..above] {
                         queries = queries.wrapping_add(1);
                         let hi = t.at(nr.hi + x);
@@ -1010,36 +1028,40 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             at += sizes[c];
         }
         let clustered = usize::from(at);
-        let region = |l: u16| if usize::from(l) < k { usize::from(l) } else { k };
-        // `ranges[c].end` (and `tail` for the rest) is the fill pointer of each region.
+        // The fill pointer of each region, `tail` that of the rest; `labels[..n]` and
+        // `events` are as long, so the swaps below stay inside.
+        let labels = &mut self.labels[..n];
+        let ranges = &mut self.ranges[..k];
         let mut tail = clustered;
         for r in 0..=k {
+            let end = ranges.get(r).map_or(n, |g| usize::from(g.start + sizes[r]));
             loop {
-                let (fill, end) = if r < k {
-                    (usize::from(self.ranges[r].end), usize::from(self.ranges[r].start + sizes[r]))
-                } else {
-                    (tail, n)
-                };
+                let fill = ranges.get(r).map_or(tail, |g| usize::from(g.end));
                 if fill >= end {
                     break;
                 }
-                let l = region(self.labels[fill]);
-                if l == r {
-                    if r < k {
-                        self.ranges[r].end += 1;
-                    } else {
+                let l = usize::from(labels[fill]);
+                let dest = match ranges.get_mut(l) {
+                    Some(g) => &mut g.end,
+                    None => {
+                        // Noise and dropped events (labels beyond the clusters) go last.
+                        if r == k {
+                            tail += 1;
+                            continue;
+                        }
+                        let d = tail;
                         tail += 1;
+                        events.swap(fill, d);
+                        labels.swap(fill, d);
+                        continue;
                     }
-                } else {
+                };
+                let d = usize::from(*dest);
+                *dest += 1;
+                if l != r {
                     // Each swap puts one event in its final region, so this ends.
-                    let dest = if l < k { usize::from(self.ranges[l].end) } else { tail };
-                    events.swap(fill, dest);
-                    self.labels.swap(fill, dest);
-                    if l < k {
-                        self.ranges[l].end += 1;
-                    } else {
-                        tail += 1;
-                    }
+                    events.swap(fill, d);
+                    labels.swap(fill, d);
                 }
             }
         }
