@@ -1116,8 +1116,19 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
 
     #[inline]
     fn union(&mut self, a: usize, b: usize) {
+        let (la, lb) = (self.labels[a] & MASK, self.labels[b] & MASK);
         // Most links join points already in one set, often through the same parent.
-        if self.labels[a] & MASK != self.labels[b] & MASK {
+        if la == lb {
+            return;
+        }
+        // A root is its set's lowest index, so a root above the other point's parent can
+        // hang from that parent (lower than it) without a search: the usual case of a core
+        // point met for the first time, by the previous one in its row.
+        if usize::from(lb) == b && a < b {
+            self.labels[b] = CORE | la;
+        } else if usize::from(la) == a && b < a {
+            self.labels[a] = CORE | lb;
+        } else {
             self.union_roots(a, b);
         }
     }
