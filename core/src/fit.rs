@@ -283,13 +283,14 @@ impl Histogram {
         Self { bins: [0; HIST_BINS], count: 0 }
     }
 
+    /// Counts one residual in its bin; `count` is set once the pass is done (a store per
+    /// event saved).
     #[inline]
     fn add(&mut self, abs_residual: f32) {
         // The last bin collects everything beyond the histogram (a NaN casts to bin 0).
         let k = ((abs_residual * (1.0 / HIST_BIN)) as usize).min(HIST_BINS - 1);
         // A fit takes at most `u16::MAX` events (see `fit_from`): no bin overflows.
         self.bins[k] = self.bins[k].wrapping_add(1);
-        self.count += 1;
     }
 
     /// The median, interpolated within its bin.
@@ -315,24 +316,24 @@ struct Weights {
 }
 
 /// What one pass over the events at parameters `p` gives: the weighted normal equations
-/// `JᵀWJ` (lower triangle) and `JᵀWξ`, the weighted sums for the spread, and the histogram
-/// of |ξ| for the next kernel width.
+/// `JᵀWJ` (lower triangle) and `JᵀWξ`, and the weighted sums for the spread. The histogram
+/// of |ξ| for the next kernel width goes to the caller's (returned inside `Pass` it was
+/// copied on every pass).
 struct Pass {
     a: [[f32; 5]; 5],
     g: [f32; 5],
     sw: f32,
     swe2: f32,
-    hist: Histogram,
 }
 
-fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool) -> Pass {
+fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist: &mut Histogram) -> Pass {
     // Copies of the loop: a still circle needs neither the time columns nor their sums (and
     // most clusters are fitted still), and plain least squares no weights.
     match (tilt, w.reweight) {
-        (true, true) => pass_with::<true, true>(parts, f, p, w),
-        (true, false) => pass_with::<true, false>(parts, f, p, w),
-        (false, true) => pass_with::<false, true>(parts, f, p, w),
-        (false, false) => pass_with::<false, false>(parts, f, p, w),
+        (true, true) => pass_with::<true, true>(parts, f, p, w, hist),
+        (true, false) => pass_with::<true, false>(parts, f, p, w, hist),
+        (false, true) => pass_with::<false, true>(parts, f, p, w, hist),
+        (false, false) => pass_with::<false, false>(parts, f, p, w, hist),
     }
 }
 
@@ -345,8 +346,10 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
     f: &Frame,
     p: &[f32; 5],
     w: &Weights,
+    hist: &mut Histogram,
 ) -> Pass {
-    let mut hist = Histogram::new();
+    *hist = Histogram::new();
+    hist.count = parts.iter().map(|p| p.len() as u32).sum();
     let [u, v, va, vb, r] = *p;
     // exp(−ξ²/2σ²) with the division done once.
     let scale = 0.5 / (w.sigma * w.sigma);
@@ -419,7 +422,7 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
         [sxyt, syyt, sxytt, syytt, 0.0],
         [sx, sy, sxt, syt, sw],
     ];
-    Pass { a, g: [-gx, -gy, -gxt, -gyt, -g1], sw, swe2, hist }
+    Pass { a, g: [-gx, -gy, -gxt, -gyt, -g1], sw, swe2 }
 }
 
 /// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
@@ -441,8 +444,9 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
     let mut converged = false;
     let mut spread = f32::INFINITY;
     let mut it = 0usize;
+    let mut hist = Histogram::new();
     while it < usize::from(cfg.max_iterations) {
-        let ps = pass(parts, f, &p, &w, tilt);
+        let ps = pass(parts, f, &p, &w, tilt, &mut hist);
         if ps.sw > 0.0 {
             spread = sqrt(ps.swe2 / ps.sw);
         }
@@ -479,7 +483,7 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
         }
         // The kernel follows the residuals' spread as the fit sheds its outliers.
         if reweight {
-            w.sigma = kernel(ps.hist.median());
+            w.sigma = kernel(hist.median());
         }
         let tilted = step[2].abs().max(step[3].abs()) * f.t_reach;
         if moved.max(step[4].abs()).max(tilted) < STEP_TOLERANCE {
