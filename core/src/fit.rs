@@ -457,21 +457,20 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
         for (i, row) in a.iter_mut().enumerate() {
             row[i] += 1e-4 * ps.a[i][i] + floor;
         }
-        let mut rhs = ps.g.map(|x| -x);
-        if !tilt {
-            // Decouple the tilt: unit diagonal, no coupling, zero gradient → zero step.
-            for k in [2, 3] {
-                for (c, row) in a.iter_mut().enumerate() {
-                    if c > k {
-                        row[k] = 0.0;
-                    }
-                }
-                a[k] = [0.0; 5];
-                a[k][k] = 1.0;
-                rhs[k] = 0.0;
-            }
-        }
-        let Some(mut step) = solve_spd::<5>(a, rhs) else { break };
+        let rhs = ps.g.map(|x| -x);
+        let step = if tilt {
+            solve_spd::<5>(a, rhs)
+        } else {
+            // A still circle: the system of u, v, r alone, the same bits as the full one with
+            // the tilt decoupled (unit diagonal, no coupling, zero gradient, zero step) but
+            // without its two extra rows (two square roots among them).
+            solve_spd::<3>(
+                [[a[0][0], 0.0, 0.0], [a[1][0], a[1][1], 0.0], [a[4][0], a[4][1], a[4][4]]],
+                [rhs[0], rhs[1], rhs[4]],
+            )
+            .map(|[du, dv, dr]| [du, dv, 0.0, 0.0, dr])
+        };
+        let Some(mut step) = step else { break };
         let moved = sqrt(step[0] * step[0] + step[1] * step[1]);
         let limit = MAX_STEP_FRACTION * p[4].abs().max(1.0);
         if moved > limit || !moved.is_finite() {
