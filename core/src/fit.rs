@@ -107,8 +107,9 @@ const HIST_BINS: usize = 64;
 
 /// Fits one cluster's events (times relative to the window's `t_ref`) and returns its
 /// centre at `t_ref`, or `None` when the cluster is too small, the events are degenerate
-/// (a line, a point), the events lie on no circle (an eRWLS spread beyond 3 px) or
-/// the fit lands somewhere no circle of these events can be.
+/// (a line, a point), the events lie on no circle (for eRWLS: 5 px RMS from their algebraic
+/// circle, or a weighted spread beyond 3 px) or the fit lands somewhere no circle of these
+/// events can be.
 ///
 /// Cost: a few passes over the events per iteration, no allocation, no recursion.
 pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
@@ -139,6 +140,10 @@ pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, 
             let extent = 2.0 * frame.half_w.max(frame.half_h) + 1.0;
             let (du, dv) = ((start.u - frame.x0).abs(), (start.v - frame.y0).abs());
             if start.r > 2.0 * extent || du > frame.half_w + 2.0 * start.r || dv > frame.half_h + 2.0 * start.r {
+                return None;
+            }
+            // Nor will eRWLS make one of events this far from their algebraic circle.
+            if cfg.method == FitMethod::Erwls && start.rms > MAX_START_RMS {
                 return None;
             }
             cylinder(parts, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
@@ -276,6 +281,14 @@ const MAX_STEP_FRACTION: f32 = 0.25;
 /// their iterations as tilted cylinders: a third of the window's passes over events. Centre
 /// RMS and found rates of the simulated recordings are unchanged to the fourth decimal.
 const MAX_SPREAD: f32 = 3.0;
+/// Largest RMS distance, px, of a cluster's events from their algebraic circle (the fit's
+/// start) for eRWLS to try: beyond it the cluster is clutter whose fit would end beyond
+/// [`MAX_SPREAD`] anyway, after two passes over hundreds of events. Not robust, so wider than
+/// [`MAX_SPREAD`]: a crescent with clutter attached starts a few pixels off and the weights
+/// then find its circle. On the simulated recordings, 3 px lost a circle in a thousand; 4 and
+/// 5 px none (centre RMS and found rates unchanged to the fourth decimal), and 5 px skips
+/// three quarters of the tilted passes that remained in 4000-event windows.
+const MAX_START_RMS: f32 = 5.0;
 
 /// The weights' σ for a median absolute residual (1.4826·MAD is σ for Gaussian inliers).
 fn kernel(mad: f32) -> f32 {
