@@ -48,7 +48,7 @@ pub struct WindowStats {
     pub clusters: u16,
     /// Clusters beyond the capacity, dropped.
     pub dropped_clusters: u16,
-    /// Clusters the fit rejected (too small, degenerate).
+    /// Clusters the fit rejected (too small, degenerate, or clutter on no circle).
     pub rejected_fits: u16,
     /// Clusters joined to another whose fitted circle they share (see [`process`]).
     pub merged_clusters: u16,
