@@ -97,9 +97,9 @@ const KERNEL_WIDTH: f32 = 1.5;
 const MAX_WEIGHT_EXPONENT: f32 = 18.0;
 /// A fit has converged when an accepted step moves the centre and radius less than this, px:
 /// a twentieth of the centre error a window's fit reaches (0.2 px). At 5e-3 a fifth of the
-/// fits ran out of iterations while the kernel width still moved, for no better centres
+/// fits ran out of iterations, for centres better by well under a hundredth of a pixel
 /// (simulated DAVIS346 cone, 4000-event windows: centre RMS 0.2051 px at 1e-2, 0.2045 at
-/// 5e-3, with 7 % fewer passes over the events).
+/// 5e-3, 0.2063 at 2e-2; 1e-2 makes 7 % fewer passes over the events than 5e-3).
 const STEP_TOLERANCE: f32 = 1e-2;
 /// Histogram of absolute residuals for the robust scale: bin width (px) and count.
 const HIST_BIN: f32 = 0.125;
@@ -265,7 +265,7 @@ fn centroid(parts: &[&[WindowEvent]], f: &Frame) -> Option<Local> {
 /// threshold of 48 → 160): DAVIS346 cone 4000-event windows 0.2080 → 0.2051 good light,
 /// 0.3060 → 0.3032 low light; square 0.1783 → 0.1766; DVXplorer spiral 0.2205 → 0.2171;
 /// only 16 000-event windows, whose circles move further and have 200–400 events each, gain
-/// from the tilt (0.1414 with it on every cluster, 0.1425 at 160, 0.1461 with it nowhere).
+/// from the tilt (0.1414 at 48, 0.1425 at 160, 0.1461 with it nowhere).
 /// A tilted pass also costs half as much again per event as a still one on the M4F.
 const TILT_MIN_EVENTS: usize = 160;
 /// A step that moves the centre by more than this fraction of the radius is shortened to it:
