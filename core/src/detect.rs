@@ -48,7 +48,7 @@ pub struct WindowStats {
     pub clusters: u16,
     /// Clusters beyond the capacity, dropped.
     pub dropped_clusters: u16,
-    /// Clusters the fit rejected (too small, degenerate).
+    /// Clusters the fit rejected (too small, degenerate, or clutter on no circle).
     pub rejected_fits: u16,
     /// Clusters joined to another whose fitted circle they share (see [`process`]).
     pub merged_clusters: u16,
@@ -467,11 +467,16 @@ fn recruit<const C: usize>(
     let t_ref_ms = t_ref as f32 * 1e-3;
     let mut found = [WindowEvent::default(); MAX_RECRUITS];
     for (r, f) in ranges.iter().zip(fits.iter_mut()) {
+        if f.is_none() {
+            continue;
+        }
+        let part = slice(events, r);
+        let (t_lo, t_hi) = part.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e.dt_us), hi.max(e.dt_us)));
+        // A round that takes no events, or whose fit fails, leaves the circle as it was: the
+        // next round would search the same rows for the same events, so none follows.
         for _round in 0..RECRUIT_ROUNDS {
-            let Some(c) = *f else { continue };
-            let part = slice(events, r);
+            let Some(c) = *f else { break };
             // The rows the circle sweeps over the window, with the gate.
-            let (t_lo, t_hi) = part.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e.dt_us), hi.max(e.dt_us)));
             let reach = c.r + RECRUIT_GATE + c.vv.abs() * (t_hi.saturating_sub(t_lo) as f32 * 1e-3) + 1.0;
             let (y_lo, y_hi) = ((c.v - reach).max(0.0) as u16, (c.v + reach).min(65535.0) as u16);
             let lo = noise.partition_point(|e| e.y < y_lo);
@@ -486,7 +491,7 @@ fn recruit<const C: usize>(
                 }
             }
             if k == 0 || k * 10 < part.len() {
-                continue;
+                break;
             }
             let start = Circle { u: c.u, v: c.v, vu: c.vu, vv: c.vv, r: c.r, rms: c.spread };
             match fit_from(&[part, &found[..k]], Some(start), t_ref, cfg) {
