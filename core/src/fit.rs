@@ -258,16 +258,18 @@ fn centroid(parts: &[&[WindowEvent]], f: &Frame) -> Option<Local> {
     Some(Local { p: [u, v, 0.0, 0.0, r], spread, converged: true })
 }
 
-/// Fewest events for the cylinder's tilt (the circle's velocity) to be fitted. A window
-/// covers a fraction of a pixel of motion, so the velocity of a small cluster is mostly noise;
-/// and since the centre is given at the window's middle, close to every cluster's mean time,
-/// a circle taken as still costs little. Measured on simulated recordings (centre RMS, px, a
-/// threshold of 48 → 160): DAVIS346 cone 4000-event windows 0.2080 → 0.2051 good light,
-/// 0.3060 → 0.3032 low light; square 0.1783 → 0.1766; DVXplorer spiral 0.2205 → 0.2171;
-/// only 16 000-event windows, whose circles move further and have 200–400 events each, gain
-/// from the tilt (0.1414 at 48, 0.1425 at 160, 0.1461 with it nowhere).
-/// A tilted pass also costs half as much again per event as a still one on the M4F.
-const TILT_MIN_EVENTS: usize = 160;
+/// Fewest events for the cylinder's tilt (the circle's velocity) to be fitted. A still fit
+/// gives the centre at the cluster's own mean event time, and the circles of one window fire
+/// at different times within it, so each still centre is off by its velocity times its
+/// own lead or lag: small against the truth on average, but different from circle to
+/// circle, which no pose explains. Measured both ways on simulated recordings (threshold
+/// 48 → 160): centre RMS against the truth improves a little (DAVIS346 cone 0.2080 → 0.2051
+/// px good light, 0.3060 → 0.3032 low light; DVXplorer spiral 0.2205 → 0.2171), but the
+/// calibration's reprojection RMS on the continuous DVXplorer 3x9 spiral goes from 0.198 to
+/// 0.227 px (its large, fast circles), with DAVIS346 unchanged to 0.001 px. The calibration
+/// is what users get, so the tilt is fitted from 48 events; it costs the M4F about
+/// half as much again per event in a tilted pass.
+const TILT_MIN_EVENTS: usize = 48;
 /// A step that moves the centre by more than this fraction of the radius is shortened to it:
 /// Gauss–Newton from the algebraic start is well behaved, but a wild step on a degenerate
 /// cluster must not throw the fit somewhere it cannot come back from.
