@@ -11,8 +11,8 @@
 //! shift from the views and takes it out before the final solve, and the test checks the
 //! measurement against the trailing measured from the truth. Not every target is met: fx
 //! reads 0.1–0.2 % long after that correction in these runs. Over seven seeds of the cone
-//! case (4 s each) it averages +0.05 % with a scatter of 0.045 % from run to run (the seed
-//! used here is the worst of the seven); what remains is tied to the centres' offset
+//! case (4 s each; `examples/calibration_seeds.rs`) it averages +0.05 % with a scatter of
+//! 0.05 % from run to run (the seed used here is the worst of the seven); what remains is tied to the centres' offset
 //! across their motion (a constant 0.03 px there moves fx by 0.1 %), not yet explained. With
 //! the true centres in the same views the solve is exact. In 4000-event windows part of
 //! the grid often fires too few events to be found. The figures are in the closing
