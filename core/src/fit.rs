@@ -98,8 +98,9 @@ const MAX_WEIGHT_EXPONENT: f32 = 18.0;
 /// A fit has converged when an accepted step moves the centre and radius less than this, px:
 /// a twentieth of the centre error a window's fit reaches (0.2 px). At 5e-3 a fifth of the
 /// fits ran out of iterations, for centres better by well under a hundredth of a pixel
-/// (simulated DAVIS346 cone, 4000-event windows: centre RMS 0.2051 px at 1e-2, 0.2045 at
-/// 5e-3, 0.2063 at 2e-2; 1e-2 makes 7 % fewer passes over the events than 5e-3).
+/// (simulated DAVIS346 cone, 4000-event windows, tilt from 160 events: centre RMS 0.2051 px
+/// at 1e-2, 0.2045 at 5e-3, 0.2063 at 2e-2; 1e-2 makes 7 % fewer passes over the events than
+/// 5e-3).
 const STEP_TOLERANCE: f32 = 1e-2;
 /// Histogram of absolute residuals for the robust scale: bin width (px) and count.
 const HIST_BIN: f32 = 0.125;
