@@ -643,7 +643,7 @@ fn check_smooth(pts: &[Pt], lattice: &HashMap<Cell, usize>) -> Result<(), Miss> 
 /// Fits a homography from board to image to the labelled points; the largest residual must
 /// stay well below the local spacing (distortion bends the grid by a few pixels at most; a
 /// wrong label moves a point by a whole spacing). Returns the RMS residual.
-fn homography_check(points: &[GridPoint], pattern: &Pattern) -> Result<f64, Miss> {
+pub(crate) fn homography_check(points: &[GridPoint], pattern: &Pattern) -> Result<f64, Miss> {
     let obj: Vec<[f64; 2]> = points
         .iter()
         .map(|g| {

@@ -12,3 +12,5 @@ pub mod pipeline;
 pub mod recording;
 pub mod select;
 pub mod sim;
+pub mod smooth;
+pub mod track;

@@ -11,6 +11,8 @@ use crate::export::{k3_displacement_px, ViewOrigin, WindowSample, K3_NEGLIGIBLE_
 use crate::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
 use crate::motion::{self, EdgeShift};
 use crate::select::{advice, select_views, Coverage, SelectOptions, Selection};
+use crate::smooth::{smoothed, SmoothOptions, SmoothStats};
+use crate::track::{follow, TrackOptions};
 use std::collections::BTreeMap;
 use std::fmt;
 
@@ -23,6 +25,12 @@ pub struct Setup {
     pub image_size: [u32; 2],
     /// What the grid finder accepts.
     pub find: FindOptions,
+    /// How windows the finder missed are labelled from their neighbours in time; `None`
+    /// to take only what the finder labels window by window.
+    pub track: Option<TrackOptions>,
+    /// How each point's centre is re-estimated from the windows around its view
+    /// ([`crate::smooth`]); `None` to solve on the centres as detected.
+    pub smooth: Option<SmoothOptions>,
     /// How views are chosen.
     pub select: SelectOptions,
     /// What the solve may change.
@@ -42,6 +50,8 @@ impl Setup {
             pattern,
             image_size,
             find: FindOptions::default(),
+            track: Some(TrackOptions::default()),
+            smooth: Some(SmoothOptions::default()),
             select: SelectOptions::default(),
             calib: calib::Options::default(),
             edge_margin_px: 1.0,
@@ -55,8 +65,11 @@ impl Setup {
 pub struct GridStats {
     /// Windows looked at.
     pub windows: usize,
-    /// Windows in which the grid was found.
+    /// Windows in which the grid was found (by the finder, or followed from the windows
+    /// around it).
     pub found: usize,
+    /// Of those, the windows labelled from their neighbours in time ([`crate::track`]).
+    pub followed: usize,
     /// Windows without a grid, by reason.
     pub misses: BTreeMap<Miss, usize>,
     /// Grid points left out because their circle touched the sensor's border.
@@ -69,6 +82,9 @@ impl GridStats {
     /// One line for users: found in how many windows, and why not in the rest.
     pub fn summary(&self) -> String {
         let mut s = format!("grid found in {} of {} windows", self.found, self.windows);
+        if self.followed > 0 {
+            s += &format!(" ({} of them followed from the windows around them)", self.followed);
+        }
         if !self.misses.is_empty() {
             let why: Vec<String> = self.misses.iter().map(|(m, n)| format!("{n} {m}")).collect();
             s += &format!(" (not found: {})", why.join(", "));
@@ -139,12 +155,23 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
             .collect();
         handles.into_iter().flat_map(|h| h.join().unwrap_or_default()).collect()
     });
+    let followed = match &setup.track {
+        Some(opts) => follow(windows, &found, &setup.pattern, opts),
+        None => vec![None; found.len()],
+    };
     let t0 = windows.first().map_or(0, |w| w.t_ref_us);
     let mut out = Views::default();
     out.stats.windows = windows.len();
     let needed = calib::MIN_POINTS_PER_VIEW;
-    for (w, r) in windows.iter().zip(found) {
+    for ((w, r), f) in windows.iter().zip(found).zip(followed) {
         let t_s = w.t_ref_us.saturating_sub(t0) as f64 * 1e-6;
+        let r = match (r, f) {
+            (Err(_), Some(g)) => {
+                out.stats.followed += 1;
+                Ok(g)
+            }
+            (r, _) => r,
+        };
         let grid_found = match r {
             Ok(g) => {
                 out.stats.found += 1;
@@ -177,6 +204,8 @@ pub struct Outcome {
     pub used: Vec<View>,
     /// Where each chosen view came from.
     pub used_origins: Vec<ViewOrigin>,
+    /// What smoothing the centres along their paths did, when it was on.
+    pub smoothing: Option<SmoothStats>,
     /// How far the centres trailed their circles along the motion, when measured; the
     /// solve saw them moved forward by that much.
     pub edge_shift: Option<EdgeShift>,
@@ -221,13 +250,20 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     if views.views.is_empty() {
         return Err(PipelineError::NoGrid(views.stats.clone()));
     }
-    let selection = select_views(&views.views, &setup.select);
-    let mut used: Vec<View> = selection.chosen.iter().map(|&i| views.views[i].clone()).collect();
+    let (all_views, smoothing) = match &setup.smooth {
+        Some(opts) => {
+            let (v, s) = smoothed(&views.views, &views.origins, opts);
+            (v, Some(s))
+        }
+        None => (views.views.clone(), None),
+    };
+    let selection = select_views(&all_views, &setup.select);
+    let mut used: Vec<View> = selection.chosen.iter().map(|&i| all_views[i].clone()).collect();
     let used_origins: Vec<ViewOrigin> = selection.chosen.iter().map(|&i| views.origins[i]).collect();
     let mut edge_shift = None;
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
-        let all = motion::directions(&views.views, &views.origins);
+        let all = motion::directions(&all_views, &views.origins);
         let dirs: Vec<Vec<[f64; 2]>> = selection.chosen.iter().map(|&i| all[i].clone()).collect();
         edge_shift = motion::estimate(&used, &dirs, setup.image_size, &setup.calib);
         if let Some(s) = edge_shift {
@@ -245,7 +281,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
     let advice = advice(&calibration, &coverage);
-    Ok(Outcome { selection, used, used_origins, edge_shift, calibration, without_k3, coverage, advice })
+    Ok(Outcome { selection, used, used_origins, smoothing, edge_shift, calibration, without_k3, coverage, advice })
 }
 
 #[cfg(test)]

@@ -1,22 +1,22 @@
 //! End to end: simulated recordings (continuous event simulation, clutter, noise) through the
 //! detection core, the grid finder and the solver, against the simulator's truth.
 //!
-//! Two things are checked strictly: the grid finder never pairs a point with the wrong
-//! board point (zero wrong orderings, against the truth of every window), and every
-//! scenario gives a calibration. The accuracy figures are printed beside the targets
-//! (fx, fy within 0.1 %, cx, cy within 0.5 px, RMS ≤ 0.13 px in good light, grid found in
-//! ≥ 95 % of windows where it is wholly in view) and guarded with a margin against
-//! regressions. The simulated pixels fire late inside a blurred edge, so the centres trail
-//! their circles along the motion by about a tenth of a pixel: the pipeline measures that
-//! shift from the views and takes it out before the final solve, and the test checks the
-//! measurement against the trailing measured from the truth. Not every target is met: fx
-//! reads 0.1–0.2 % long after that correction in these runs. Over seven seeds of the cone
-//! case (4 s each; `examples/calibration_seeds.rs`) it averages +0.05 % with a scatter of
-//! 0.05 % from run to run (the seed used here is the worst of the seven); what remains is tied to the centres' offset
-//! across their motion (a constant 0.03 px there moves fx by 0.1 %), not yet explained. With
-//! the true centres in the same views the solve is exact. In 4000-event windows part of
-//! the grid often fires too few events to be found. The figures are in the closing
-//! note.
+//! Checked strictly: the grid finder never pairs a point with the wrong board point (zero
+//! wrong orderings, against the truth of every window, windows followed from their
+//! neighbours included), every scenario gives a calibration, and the reprojection RMS meets
+//! the 0.13 px in good light. The other figures are printed beside the issue's
+//! targets (fx, fy within 0.1 %, cx, cy within 0.5 px, grid found in ≥ 95 % of windows where
+//! it is wholly in view) and guarded with a margin against regressions. The simulated pixels
+//! fire late inside a blurred edge, so the centres trail their circles along the motion by
+//! about a tenth of a pixel: the pipeline measures that shift from the views and takes it
+//! out before the final solve, and the test checks the measurement against the trailing
+//! measured from the truth. Not every target is met: fx reads 0.12–0.16 % long with this
+//! seed, the worst of seven (`examples/calibration_seeds.rs` runs the cone case over seeds);
+//! what remains is tied to the centres' offset across their motion (a constant 0.03 px there
+//! moves fx by 0.1 %), not yet explained. With the true centres in the same views the solve
+//! is exact. In low light a 4000-event window often holds too few events of part of the
+//! grid for it to be labelled, even from the windows around it. The figures are in the
+//! issue's closing note.
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
@@ -159,14 +159,17 @@ fn run(case: &Case) -> Figures {
     f
 }
 
-/// Guards: zero wrong orderings, and the accuracy within a margin of what is reached today.
+/// Guards: zero wrong orderings, RMS within the target in good light, and the rest within a
+/// margin of what is reached today.
 fn guard(f: &Figures, low_light: bool) {
     assert_eq!(f.wrong_orderings, 0, "a grid was labelled wrongly");
     assert!(f.views >= 20, "only {} views", f.views);
     assert!(f.fx_pct.abs() < 0.5 && f.fy_pct.abs() < 0.5, "fx {:+.3} %, fy {:+.3} %", f.fx_pct, f.fy_pct);
     assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
-    assert!(f.rms_px < if low_light { 0.35 } else { 0.25 }, "RMS {:.3} px", f.rms_px);
-    assert!(f.found_in_view > 0.5, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
+    // Good light: the 0.13 px.
+    assert!(f.rms_px < if low_light { 0.16 } else { 0.13 }, "RMS {:.3} px", f.rms_px);
+    let found = if low_light { 0.75 } else { 0.92 };
+    assert!(f.found_in_view > found, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
     let shift = f.shift_estimate.expect("the edge shift is measured");
     assert!(
         (shift - f.shift_true).abs() < 0.06,

@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! rejected down_weighted_points warnings iterations converged edge_shift`.
+//! rejected stray_points rms_all_px warnings iterations converged edge_shift`.
 
 use super::{RunCounts, ViewOrigin};
 use crate::calib::{Calibration, Intrinsics};
@@ -31,7 +31,8 @@ pub struct ResultJson {
     pub p2: f64,
     /// Radial distortion, r⁶.
     pub k3: f64,
-    /// RMS reprojection error over every point of the views used, px.
+    /// RMS reprojection error over the points of the views used, strays set aside by the
+    /// robust rule left out, px.
     pub rms_px: f64,
     /// Views the calibration used.
     pub views_used: usize,
@@ -53,8 +54,10 @@ pub struct ResultJson {
     pub std_dev: Intrinsics,
     /// Views set aside, and why.
     pub rejected: Vec<RejectedJson>,
-    /// Points down-weighted by the robust loss to below half weight.
-    pub down_weighted_points: usize,
+    /// Points set aside by the robust rule (beyond 5 σ of all points' errors).
+    pub stray_points: usize,
+    /// RMS reprojection error over every point of the views used, strays included, px.
+    pub rms_all_px: f64,
     /// The solver's warnings, then the exports'.
     pub warnings: Vec<String>,
     /// Levenberg–Marquardt steps of the final solve.
@@ -78,8 +81,10 @@ pub struct PerViewJson {
     pub t: f64,
     /// Points of the view.
     pub points: usize,
-    /// RMS reprojection error of its points, px.
+    /// RMS reprojection error of its points, strays left out, px.
     pub rms_px: f64,
+    /// Its points set aside as strays.
+    pub strays: usize,
     /// Board → camera rotation (Rodrigues vector, OpenCV's rvec).
     pub rvec: [f64; 3],
     /// Board → camera translation (OpenCV's tvec), metres.
@@ -113,6 +118,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
             t: o.t_s,
             points: v.points,
             rms_px: v.rms_px,
+            strays: v.strays,
             rvec: v.rvec,
             tvec: v.tvec,
         });
@@ -147,7 +153,8 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         median_view_px: cal.median_view_px,
         std_dev: Intrinsics::from_array(cal.std_dev),
         rejected,
-        down_weighted_points: cal.down_weighted_points,
+        stray_points: cal.stray_points,
+        rms_all_px: cal.rms_all_px,
         warnings: cal.warnings.clone(),
         iterations: cal.iterations,
         converged: cal.converged,

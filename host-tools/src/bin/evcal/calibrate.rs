@@ -66,7 +66,8 @@ pub struct SolveArgs {
     /// Keep fy/fx at 1 (square pixels).
     #[arg(long)]
     pub fix_aspect_ratio: bool,
-    /// Plain least squares, as OpenCV: no down-weighting of stray points, no views set aside.
+    /// Plain least squares, as OpenCV: no stray points set aside or down-weighted, no views
+    /// set aside.
     #[arg(long)]
     pub no_robust: bool,
     /// A view is kept only if its points moved at least this far (RMS, px) from every kept
@@ -82,6 +83,18 @@ pub struct SolveArgs {
     /// moves them forward by that much first; the amount is printed and in the JSON result.
     #[arg(long)]
     pub no_edge_shift: bool,
+    /// Solve on each window's centres alone. By default each board point's centre in a view
+    /// is re-estimated from a quadratic in time through its centres in the windows within
+    /// 70 ms (a 4000-event window holds 20-90 events per circle; five windows say more),
+    /// and a centre far off the path its neighbours trace is replaced by it.
+    #[arg(long)]
+    pub no_smoothing: bool,
+    /// Take only the grids the finder labels window by window. By default a window where the
+    /// finder cannot label the grid by itself (an edge row too faint, too few points) is
+    /// labelled from the grids found in the windows just before and after it, when every
+    /// point lands within a quarter spacing of where they put it.
+    #[arg(long)]
+    pub no_tracking: bool,
 }
 
 impl SolveArgs {
@@ -101,6 +114,12 @@ impl SolveArgs {
         s.select.min_change_px = self.min_change_px;
         s.select.max_views = self.max_views;
         s.edge_shift = !self.no_edge_shift;
+        if self.no_smoothing {
+            s.smooth = None;
+        }
+        if self.no_tracking {
+            s.track = None;
+        }
         Ok(s)
     }
 }
@@ -213,8 +232,13 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             r.reason
         )?;
     }
-    if c.down_weighted_points > 0 {
-        outln!("  {} stray points down-weighted", c.down_weighted_points)?;
+    if let Some(s) = &o.smoothing {
+        outln!(
+            "centres smoothed along their paths: {} points re-estimated from the windows around them ({} of them replaced: off their path), {} kept as detected",
+            s.smoothed,
+            s.replaced,
+            s.kept
+        )?;
     }
     if let Some(s) = &o.edge_shift {
         outln!(
@@ -224,14 +248,22 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             s.points
         )?;
     }
+    let points = c.views.iter().map(|v| v.points).sum::<usize>();
     outln!(
         "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
         c.rms_px,
         c.views.len(),
-        c.views.iter().map(|v| v.points).sum::<usize>(),
+        points - c.stray_points,
         c.mean_view_px,
         c.median_view_px
     )?;
+    if c.stray_points > 0 {
+        outln!(
+            "  {} stray points set aside (beyond 5σ of all errors: centres fitted to a short arc, blobs merged with circles); RMS with them {:.3} px",
+            c.stray_points,
+            c.rms_all_px
+        )?;
+    }
     let est = c.intrinsics.to_array();
     match truth {
         Some(t) => {

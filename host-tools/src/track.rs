@@ -1,0 +1,298 @@
+//! Following the grid through time: labelling a window the grid finder gave up on from the
+//! windows around it.
+//!
+//! The finder labels each window on its own, and must refuse when the lattice it sees fits
+//! the pattern in more than one way (an edge row fired too few events to be detected) or
+//! holds too few points to be placed. The board moves smoothly over the 33 ms between
+//! windows, so the grids found just before and after say where each board point is now, to a
+//! small fraction of the grid's spacing, while a wrong label is a whole spacing away. A
+//! centre close to a point's predicted place takes its label; the labelled set is then
+//! refined through its own homography and must pass the finder's homography check.
+//!
+//! Only windows the finder labelled by itself serve as anchors: a mistake here cannot travel
+//! along a chain of followed windows.
+
+use crate::calib::fit_homography;
+use crate::detections::WindowRecord;
+use crate::grid::{homography_check, GridDetection, GridPoint, Miss, Pattern};
+
+/// How far and how strictly the grid is followed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackOptions {
+    /// Farthest in time an anchor (a window the finder labelled) may be from the window
+    /// labelled from it, µs.
+    pub max_gap_us: u64,
+    /// A centre takes a board point's label when it lies within this fraction of the local
+    /// grid spacing of the point's predicted place. A wrong label is a whole spacing off.
+    pub gate: f64,
+    /// The same after the labels have been refined through the view's own homography.
+    pub refined_gate: f64,
+    /// Fewest board points a followed grid must hold, as a fraction of all.
+    pub min_fraction: f64,
+    /// A centre whose radius differs from the median of the labelled ones by more than this
+    /// fraction is not a grid circle (clutter near the grid).
+    pub radius_tolerance: f64,
+}
+
+impl Default for TrackOptions {
+    fn default() -> Self {
+        Self { max_gap_us: 70_000, gate: 0.25, refined_gate: 0.15, min_fraction: 0.6, radius_tolerance: 0.35 }
+    }
+}
+
+fn apply(h: &[f64; 9], o: [f64; 2]) -> Option<[f64; 2]> {
+    let w = h[6] * o[0] + h[7] * o[1] + h[8];
+    if w.abs() < 1e-12 {
+        return None;
+    }
+    let p = [(h[0] * o[0] + h[1] * o[1] + h[2]) / w, (h[3] * o[0] + h[4] * o[1] + h[5]) / w];
+    p.iter().all(|x| x.is_finite()).then_some(p)
+}
+
+fn board(pattern: &Pattern) -> Vec<[f64; 2]> {
+    pattern.object_points().iter().map(|o| [o[0], o[1]]).collect()
+}
+
+/// Every board point's image position under the grid's own homography.
+fn projected(grid: &GridDetection, board: &[[f64; 2]]) -> Option<Vec<[f64; 2]>> {
+    let obj: Vec<[f64; 2]> = grid.points.iter().map(|g| board[g.index]).collect();
+    let img: Vec<[f64; 2]> = grid.points.iter().map(|g| g.image).collect();
+    let h = fit_homography(&obj, &img)?;
+    board.iter().map(|&o| apply(&h, o)).collect()
+}
+
+/// Where the anchors put every board point at time `t`: interpolated between one anchor on
+/// each side, or extrapolated from the two nearest on one side.
+fn predict(anchors: &[(u64, Vec<[f64; 2]>)], t: u64) -> Option<Vec<[f64; 2]>> {
+    let before: Vec<&(u64, Vec<[f64; 2]>)> = anchors.iter().filter(|a| a.0 <= t).collect();
+    let after: Vec<&(u64, Vec<[f64; 2]>)> = anchors.iter().filter(|a| a.0 > t).collect();
+    let (a, b) = match (before.last(), after.first()) {
+        (Some(a), Some(b)) => (*a, *b),
+        (Some(a), None) if before.len() >= 2 => (before[before.len() - 2], *a),
+        (None, Some(b)) if after.len() >= 2 => (*b, after[1]),
+        _ => return None,
+    };
+    let span = b.0 as f64 - a.0 as f64;
+    if span <= 0.0 {
+        return None;
+    }
+    let s = (t as f64 - a.0 as f64) / span;
+    Some(a.1.iter().zip(&b.1).map(|(p, q)| [p[0] + s * (q[0] - p[0]), p[1] + s * (q[1] - p[1])]).collect())
+}
+
+/// Distance from each predicted point to its nearest neighbour among them.
+fn spacings(pred: &[[f64; 2]]) -> Vec<f64> {
+    pred.iter()
+        .enumerate()
+        .map(|(i, p)| {
+            pred.iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i)
+                .map(|(_, q)| (p[0] - q[0]).hypot(p[1] - q[1]))
+                .fold(f64::INFINITY, f64::min)
+        })
+        .collect()
+}
+
+/// Each board point's nearest centre within `gate` spacings of its predicted place.
+fn matched(pred: &[[f64; 2]], window: &WindowRecord, gate: f64, radius: Option<(f64, f64)>) -> Vec<GridPoint> {
+    let spacing = spacings(pred);
+    let mut points = Vec::new();
+    for (index, (p, s)) in pred.iter().zip(&spacing).enumerate() {
+        let best = window
+            .centers
+            .iter()
+            .filter(|c| c.u.is_finite() && c.v.is_finite() && c.r.is_finite() && c.r > 0.0)
+            .filter(|c| radius.is_none_or(|(median, tol)| (f64::from(c.r) / median - 1.0).abs() <= tol))
+            .map(|c| ([f64::from(c.u), f64::from(c.v)], f64::from(c.r)))
+            .map(|(q, r)| (q, r, (q[0] - p[0]).hypot(q[1] - p[1])))
+            .filter(|&(_, _, d)| d <= gate * s)
+            .min_by(|a, b| a.2.total_cmp(&b.2));
+        if let Some((image, radius_px, _)) = best {
+            points.push(GridPoint { index, image, radius_px });
+        }
+    }
+    points
+}
+
+fn median(mut v: Vec<f64>) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}
+
+/// Most rounds of following: each round's grids anchor the next (a run of windows missed
+/// in a row is followed in from both ends).
+pub const MAX_ROUNDS: usize = 8;
+
+/// Labels, where it can, the windows the finder missed: `found[k]` is the finder's result
+/// for `windows[k]` (windows in time order); the answer holds a grid for each missed window
+/// that its anchors label with confidence, `None` elsewhere (and for every window the finder
+/// labelled itself). A window labelled in one round is an anchor in the next, for up to
+/// [`MAX_ROUNDS`] rounds: every grid so labelled passed the same checks as the first.
+pub fn follow(
+    windows: &[WindowRecord],
+    found: &[Result<GridDetection, Miss>],
+    pattern: &Pattern,
+    opts: &TrackOptions,
+) -> Vec<Option<GridDetection>> {
+    let board = board(pattern);
+    let n = windows.len().min(found.len());
+    let mut anchors: Vec<Option<Vec<[f64; 2]>>> =
+        found.iter().take(n).map(|r| r.as_ref().ok().and_then(|g| projected(g, &board))).collect();
+    let mut out: Vec<Option<GridDetection>> = vec![None; found.len()];
+    for _ in 0..MAX_ROUNDS {
+        let round: Vec<(usize, GridDetection)> = (0..n)
+            .filter(|&k| found[k].is_err() && out[k].is_none())
+            .filter_map(|k| follow_one(windows, &anchors, k, &board, pattern, opts).map(|g| (k, g)))
+            .collect();
+        if round.is_empty() {
+            break;
+        }
+        for (k, g) in round {
+            anchors[k] = projected(&g, &board);
+            out[k] = Some(g);
+        }
+    }
+    out
+}
+
+/// Window `k` labelled from the anchors around it, if they say with confidence.
+fn follow_one(
+    windows: &[WindowRecord],
+    anchors: &[Option<Vec<[f64; 2]>>],
+    k: usize,
+    board: &[[f64; 2]],
+    pattern: &Pattern,
+    opts: &TrackOptions,
+) -> Option<GridDetection> {
+    let needed = ((opts.min_fraction.clamp(0.0, 1.0) * board.len() as f64).ceil() as usize).max(6);
+    let t = windows[k].t_ref_us;
+    let near = |j: usize| windows[j].t_ref_us.abs_diff(t) <= opts.max_gap_us;
+    // The two nearest anchors on each side, in time order.
+    let mut around: Vec<(u64, Vec<[f64; 2]>)> = Vec::new();
+    for j in (0..k).rev().take_while(|&j| near(j)).filter(|&j| anchors[j].is_some()).take(2) {
+        around.insert(0, (windows[j].t_ref_us, anchors[j].clone()?));
+    }
+    for j in (k + 1..anchors.len()).take_while(|&j| near(j)).filter(|&j| anchors[j].is_some()).take(2) {
+        around.push((windows[j].t_ref_us, anchors[j].clone()?));
+    }
+    let pred = predict(&around, t)?;
+    let first = matched(&pred, &windows[k], opts.gate, None);
+    if first.len() < needed {
+        return None;
+    }
+    // Refine through the view's own homography, with clutter of the wrong size out.
+    let r = median(first.iter().map(|g| g.radius_px).collect())?;
+    let refined = projected(&GridDetection { points: first, homography_rms_px: 0.0 }, board)?;
+    let points = matched(&refined, &windows[k], opts.refined_gate, Some((r, opts.radius_tolerance)));
+    if points.len() < needed {
+        return None;
+    }
+    let homography_rms_px = homography_check(&points, pattern).ok()?;
+    Some(GridDetection { points, homography_rms_px })
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+    use crate::detections::CenterRecord;
+
+    /// A 4x11 grid seen flat: board metres to pixels, moved by `shift` px.
+    fn shot(pattern: &Pattern, shift: [f64; 2]) -> Vec<[f64; 2]> {
+        board(pattern).iter().map(|o| [60.0 + 600.0 * o[0] + shift[0], 40.0 + 600.0 * o[1] + shift[1]]).collect()
+    }
+
+    fn window(seq: u32, t_ref_us: u64, pts: &[[f64; 2]]) -> WindowRecord {
+        WindowRecord {
+            seq,
+            t_ref_us,
+            events: 4000,
+            noise: 0,
+            centers: pts
+                .iter()
+                .map(|p| CenterRecord { u: p[0] as f32, v: p[1] as f32, r: 5.0, spread: 0.1, n: 60, converged: true })
+                .collect(),
+        }
+    }
+
+    fn grid(pts: &[[f64; 2]]) -> GridDetection {
+        GridDetection {
+            points: pts.iter().enumerate().map(|(index, &image)| GridPoint { index, image, radius_px: 5.0 }).collect(),
+            homography_rms_px: 0.0,
+        }
+    }
+
+    /// Three windows moving 4 px a step; the middle one lost its first column (the finder
+    /// could not tell which column is missing). The anchors label it, every point right.
+    #[test]
+    fn labels_a_window_with_an_edge_column_missing() {
+        let pattern = Pattern::new(4, 11, 0.02).unwrap();
+        let shots: Vec<Vec<[f64; 2]>> = (0..3).map(|k| shot(&pattern, [4.0 * k as f64, 1.0 * k as f64])).collect();
+        let middle: Vec<[f64; 2]> = shots[1][4..].to_vec();
+        let windows = [window(0, 0, &shots[0]), window(1, 33_000, &middle), window(2, 66_000, &shots[2])];
+        let found = [Ok(grid(&shots[0])), Err(Miss::Ambiguous), Ok(grid(&shots[2]))];
+        let out = follow(&windows, &found, &pattern, &TrackOptions::default());
+        assert!(out[0].is_none() && out[2].is_none());
+        let g = out[1].as_ref().expect("followed");
+        assert_eq!(g.points.len(), 40);
+        for p in &g.points {
+            let want = shots[1][p.index];
+            assert!((p.image[0] - want[0]).hypot(p.image[1] - want[1]) < 1e-3, "point {} mislabelled", p.index);
+        }
+    }
+
+    /// Extrapolation from two anchors on one side; a clutter blob sits near a point whose
+    /// circle was not detected and must not take its label.
+    #[test]
+    fn extrapolates_and_leaves_clutter_out() {
+        let pattern = Pattern::new(4, 11, 0.02).unwrap();
+        let shots: Vec<Vec<[f64; 2]>> = (0..3).map(|k| shot(&pattern, [3.0 * k as f64, -2.0 * k as f64])).collect();
+        let mut last: Vec<[f64; 2]> = shots[2].clone();
+        last[7] = [last[7][0] + 3.5, last[7][1]];
+        let windows = [window(0, 0, &shots[0]), window(1, 33_000, &shots[1]), window(2, 66_000, &last)];
+        let found = [Ok(grid(&shots[0])), Ok(grid(&shots[1])), Err(Miss::TooFewPoints)];
+        let g = follow(&windows, &found, &pattern, &TrackOptions::default())[2].clone().expect("followed");
+        assert_eq!(g.points.len(), 43);
+        assert!(g.points.iter().all(|p| p.index != 7));
+    }
+
+    /// Five windows missed in a row between two found ones are followed in from both ends,
+    /// round by round, every point labelled right.
+    #[test]
+    fn a_run_of_misses_is_followed_in_from_both_ends() {
+        let pattern = Pattern::new(4, 11, 0.02).unwrap();
+        let shots: Vec<Vec<[f64; 2]>> =
+            (0..9).map(|k| shot(&pattern, [3.0 * k as f64 + 0.2 * (k * k) as f64, 1.5 * k as f64])).collect();
+        let windows: Vec<WindowRecord> =
+            shots.iter().enumerate().map(|(k, s)| window(k as u32, 33_000 * k as u64, &s[4..])).collect();
+        let found: Vec<Result<GridDetection, Miss>> =
+            (0..9).map(|k| if (2..7).contains(&k) { Err(Miss::Ambiguous) } else { Ok(grid(&shots[k])) }).collect();
+        let out = follow(&windows, &found, &pattern, &TrackOptions::default());
+        for k in 2..7 {
+            let g = out[k].as_ref().unwrap_or_else(|| panic!("window {k} not followed"));
+            assert_eq!(g.points.len(), 40);
+            for p in &g.points {
+                let want = shots[k][p.index];
+                assert!((p.image[0] - want[0]).hypot(p.image[1] - want[1]) < 1e-3, "window {k}: point {}", p.index);
+            }
+        }
+    }
+
+    /// A grid a whole spacing away from where the anchors put it is not labelled: that is
+    /// what a wrong label would look like.
+    #[test]
+    fn refuses_when_the_prediction_is_off() {
+        let pattern = Pattern::new(4, 11, 0.02).unwrap();
+        let a = shot(&pattern, [0.0, 0.0]);
+        let jumped = shot(&pattern, [6.0, 0.0]);
+        let windows = [window(0, 0, &a), window(1, 33_000, &jumped), window(2, 66_000, &a)];
+        let found = [Ok(grid(&a)), Err(Miss::Ambiguous), Ok(grid(&a))];
+        assert!(follow(&windows, &found, &pattern, &TrackOptions::default())[1].is_none());
+        // Too far in time from any anchor: not followed either.
+        let windows = [window(0, 0, &a), window(1, 500_000, &a), window(2, 1_000_000, &a)];
+        assert!(follow(&windows, &found, &pattern, &TrackOptions::default())[1].is_none());
+    }
+}
