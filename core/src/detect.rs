@@ -8,9 +8,9 @@ use crate::{
     arc::{Circle, Moments},
     cluster::sort_by_pixel,
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
-    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
+    config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
-    fit::{fit_from, Centre, FitConfig},
+    fit::{fit_with, Centre, FitConfig},
     math::sqrt,
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
@@ -239,13 +239,15 @@ pub fn process<const N: usize, const C: usize>(
         let _ = ranges.push(*r);
     }
     let t1 = clock.now();
+    // The fits' events in their local frames (see `fit_with`).
+    let mut scratch = [[0.0f32; 3]; FIT_SCRATCH_EVENTS];
     let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {
         let start = starts.get(k).copied().flatten();
-        let _ = fits.push(fit_from(&[slice(events, r)], start, t_ref, &cfg.fit));
+        let _ = fits.push(fit_with(&[slice(events, r)], start, t_ref, &cfg.fit, &mut scratch));
     }
-    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit);
-    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit);
+    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
+    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
     let mut rejected = 0u16;
     out.centres.clear();
     for f in &fits {
@@ -394,6 +396,7 @@ fn join_fitted<const C: usize>(
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
 ) -> u16 {
     let mut merged = 0u16;
     let mut i = 0;
@@ -410,7 +413,7 @@ fn join_fitted<const C: usize>(
                 continue;
             }
             let (ri, rj) = (ranges[i], ranges[j]);
-            let union = fit_from(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg);
+            let union = fit_with(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg, scratch);
             let Some(u) = union.filter(|u| u.spread <= JOIN_MAX_SPREAD) else {
                 j += 1;
                 continue;
@@ -459,6 +462,7 @@ fn recruit<const C: usize>(
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
 ) {
     let clustered = ranges.iter().map(|r| usize::from(r.end)).max().unwrap_or(0);
     let Some(noise) = events.get_mut(clustered..) else { return };
@@ -494,7 +498,7 @@ fn recruit<const C: usize>(
                 break;
             }
             let start = Circle { u: c.u, v: c.v, vu: c.vu, vv: c.vv, r: c.r, rms: c.spread };
-            match fit_from(&[part, &found[..k]], Some(start), t_ref, cfg) {
+            match fit_with(&[part, &found[..k]], Some(start), t_ref, cfg, scratch) {
                 Some(better) => *f = Some(better),
                 None => break,
             }
