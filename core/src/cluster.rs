@@ -450,13 +450,27 @@ impl<'c> Tables<'c> {
             self.keys[slot] = u32::from(y);
             self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
             let base = slot * self.stride;
-            let mut c = base;
-            for k in start..end {
-                let to = base + usize::from(events[k].x.wrapping_sub(self.min_x)) + self.pad + 1;
-                fill(self.cells, c, to, k as u16);
-                c = c.max(to);
+            // `slots · stride` cells fit (see `new`): the row's table is all there.
+            let Some(table) = self.cells.get_mut(base..base + self.stride) else { continue };
+            let mut c = 0;
+            let first = self.pad + 1;
+            for (k, e) in events.get(start..end).unwrap_or(&[]).iter().enumerate() {
+                let to = usize::from(e.x.wrapping_sub(self.min_x)) + first;
+                // Events of one pixel or of neighbouring columns (most of them) fill a cell
+                // or none: no call for them.
+                if to > c {
+                    let v = (start + k) as u16;
+                    if to == c + 1 {
+                        if let Some(cell) = table.get_mut(c) {
+                            *cell = v;
+                        }
+                    } else {
+                        fill(table, c, to, v);
+                    }
+                    c = to;
+                }
             }
-            fill(self.cells, c, base + self.stride, end as u16);
+            fill(table, c, self.stride, end as u16);
         }
     }
 
