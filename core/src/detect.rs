@@ -405,7 +405,8 @@ fn join_pairs<const C: usize>(boxes: &[[u16; 4]], sums: &[Moments], into: &mut [
 /// (two circles of a grid never overlap like that).
 fn overlapping(a: &Centre, b: &Centre) -> bool {
     let (du, dv) = (a.u - b.u, a.v - b.v);
-    let r = a.r.max(b.r);
+    // The larger radius, without a library call (fitted radii are never NaN).
+    let r = if a.r < b.r { b.r } else { a.r };
     du * du + dv * dv <= r * r
 }
 
@@ -440,11 +441,14 @@ fn join_fitted<const C: usize>(
         let mut j = i + 1;
         let mut grew = false;
         while j < ranges.len() {
-            let (Some(a), Some(b)) = (fits.get(i).copied().flatten(), fits.get(j).copied().flatten()) else {
-                j += 1;
-                continue;
+            // Borrowed, not copied: most pairs are far apart.
+            let candidate = match (fits.get(i), fits.get(j)) {
+                (Some(Some(a)), Some(Some(b))) => {
+                    overlapping(a, b) && !(a.spread > JOIN_MAX_PART_SPREAD || b.spread > JOIN_MAX_PART_SPREAD)
+                }
+                _ => false,
             };
-            if !overlapping(&a, &b) || a.spread.max(b.spread) > JOIN_MAX_PART_SPREAD {
+            if !candidate {
                 j += 1;
                 continue;
             }
