@@ -450,45 +450,75 @@ impl<'c> Tables<'c> {
             self.keys[slot] = u32::from(y);
             self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
             let base = slot * self.stride;
-            let mut c = base;
-            for k in start..end {
-                let to = base + usize::from(events[k].x.wrapping_sub(self.min_x)) + self.pad + 1;
-                fill(self.cells, c, to, k as u16);
-                c = c.max(to);
+            // `slots · stride` cells fit (see `new`): the row's table is all there.
+            let Some(table) = self.cells.get_mut(base..base + self.stride) else { continue };
+            let mut c = 0;
+            let first = self.pad + 1;
+            for (k, e) in events.get(start..end).unwrap_or(&[]).iter().enumerate() {
+                let to = usize::from(e.x.wrapping_sub(self.min_x)) + first;
+                // Events of one pixel or of neighbouring columns (most of them) fill a cell
+                // or none: no call for them.
+                if to > c {
+                    let v = (start + k) as u16;
+                    if to == c + 1 {
+                        if let Some(cell) = table.get_mut(c) {
+                            *cell = v;
+                        }
+                    } else {
+                        fill(table, c, to, v);
+                    }
+                    c = to;
+                }
             }
-            fill(self.cells, c, base + self.stride, end as u16);
+            fill(table, c, self.stride, end as u16);
         }
+    }
+
+    /// How [`around`](Self::around) visits the row `d` rows from the one asked about (`|d|`
+    /// within the reach), whose spans are `s` columns either side.
+    fn offset(&self, d: i32, s: u16) -> Offset {
+        // `slots` exceeds twice the reach: `slots + d` is positive.
+        Offset { d, shift: self.slots.wrapping_add_signed(d as isize), s: usize::from(s), above: usize::from(d < 0) }
     }
 
     /// Row `y` (built), and the built rows within reach of it, in `order`'s row distances,
     /// into `out`: returns how many, and how many of them are above row `y`.
-    fn around(&self, y: u16, order: &[i32], span: &[u16; MAX_REACH_ROWS + 1], out: &mut [Near]) -> (Row, usize, usize) {
+    fn around(&self, y: u16, order: &[Offset], out: &mut [Near]) -> (Row, usize, usize) {
         let (mut len, mut above) = (0, 0);
         let own = usize::from(y) % self.slots;
-        for &d in order {
-            // `slots` exceeds twice the reach: one wrap either way at most.
-            let mut slot = (own + self.slots).wrapping_add_signed(d as isize);
+        for o in order {
+            // `own + shift` is below three times `slots`.
+            let mut slot = own + o.shift;
             if slot >= self.slots {
                 slot -= self.slots;
             }
             if slot >= self.slots {
                 slot -= self.slots;
             }
-            let (Some(&key), Some(&s), Some(near)) =
-                (self.keys.get(slot), span.get(d.unsigned_abs() as usize), out.get_mut(len))
-            else {
+            let (Some(&key), Some(near)) = (self.keys.get(slot), out.get_mut(len)) else {
                 break;
             };
-            if key != (i32::from(y) + d) as u32 {
+            if key != (i32::from(y) + o.d) as u32 {
                 continue;
             }
-            let (s, base) = (usize::from(s), slot * self.stride + self.pad);
-            *near = Near { lo: base - s, mid: base + 1, hi: base + s + 1 };
+            let base = slot * self.stride + self.pad;
+            *near = Near { lo: base - o.s, mid: base + 1, hi: base + o.s + 1 };
             len += 1;
-            above += usize::from(d < 0);
+            above += o.above;
         }
         (self.rows[own], len, above)
     }
+}
+
+/// A row distance as [`Tables::around`] uses it: the distance `d`, the slot shift
+/// `slots + d`, the span `s` of a neighbourhood that many rows away, and whether the row is
+/// above (1) or not (0).
+#[derive(Clone, Copy, Default)]
+struct Offset {
+    d: i32,
+    shift: usize,
+    s: usize,
+    above: usize,
 }
 
 /// Sets `cells[from..to]` (nothing when empty) to `v`, four at a time.
@@ -668,7 +698,13 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             top_down[d as usize] = d - r;
             nearest[d as usize] = if d % 2 == 1 { -(d + 1) / 2 } else { d / 2 };
         }
-        let (nearest, top_down) = (&nearest[..2 * reach + 1], &top_down[..2 * reach + 1]);
+        let mut by_nearest = [Offset::default(); 2 * MAX_REACH_ROWS + 1];
+        let mut by_row = [Offset::default(); 2 * MAX_REACH_ROWS + 1];
+        for (k, (a, b)) in by_nearest.iter_mut().zip(by_row.iter_mut()).enumerate().take(2 * reach + 1) {
+            *a = t.offset(nearest[k], span[nearest[k].unsigned_abs() as usize]);
+            *b = t.offset(top_down[k], span[top_down[k].unsigned_abs() as usize]);
+        }
+        let (nearest, top_down) = (&by_nearest[..2 * reach + 1], &by_row[..2 * reach + 1]);
         let mut near = [Near::default(); 2 * MAX_REACH_ROWS + 1];
         let s0 = span[0];
 
@@ -680,7 +716,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             //    row within reach that a span holds are two lookups.
             while let Some(c) = events.get(counted).filter(|c| u32::from(c.y) <= y + reach as u32) {
                 t.build_to(events, u32::from(c.y) + reach as u32);
-                let (row, len, _) = t.around(c.y, nearest, &span, &mut near);
+                let (row, len, _) = t.around(c.y, nearest, &mut near);
                 // Events of one pixel share their neighbourhood.
                 let (mut last_x, mut core) = (usize::MAX, false);
                 for k in usize::from(row.start)..usize::from(row.end) {
@@ -709,7 +745,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             //    core points of either half of a span (their gaps are within the same-row
             //    reach). A border point takes the first core point of the first span, from
             //    the top down, that holds one.
-            let (row, len, above) = t.around(e.y, top_down, &span, &mut near);
+            let (row, len, above) = t.around(e.y, top_down, &mut near);
             let near = &near[..len];
             let mut prev: Option<(usize, u16)> = None;
             for k in usize::from(row.start)..usize::from(row.end) {

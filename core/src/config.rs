@@ -32,3 +32,9 @@ pub const DEFAULT_MAX_ITERATIONS: u8 = 6;
 /// Most events DBSCAN left as noise that one fitted circle takes back (see
 /// [`detect::process`](crate::detect::process)); further ones are left out of its fit.
 pub const MAX_RECRUITS: usize = 128;
+
+/// Events whose coordinates in a fit's local frame (three `f32` each) the fit converts once
+/// and keeps for all its passes; a larger cluster's events are converted again on every pass,
+/// this many at a time (same results). [`detect::process`](crate::detect::process) keeps the
+/// scratch on the stack, 6 KiB, while it fits.
+pub const FIT_SCRATCH_EVENTS: usize = 512;

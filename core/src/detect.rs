@@ -8,9 +8,9 @@ use crate::{
     arc::{Circle, Moments},
     cluster::sort_by_pixel,
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
-    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
+    config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
-    fit::{fit_from, Centre, FitConfig},
+    fit::{fit_with, Centre, FitConfig},
     math::sqrt,
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
@@ -239,13 +239,15 @@ pub fn process<const N: usize, const C: usize>(
         let _ = ranges.push(*r);
     }
     let t1 = clock.now();
+    // The fits' events in their local frames (see `fit_with`).
+    let mut scratch = [[0.0f32; 3]; FIT_SCRATCH_EVENTS];
     let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {
         let start = starts.get(k).copied().flatten();
-        let _ = fits.push(fit_from(&[slice(events, r)], start, t_ref, &cfg.fit));
+        let _ = fits.push(fit_with(&[slice(events, r)], start, t_ref, &cfg.fit, &mut scratch));
     }
-    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit);
-    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit);
+    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
+    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
     let mut rejected = 0u16;
     out.centres.clear();
     for f in &fits {
@@ -310,37 +312,7 @@ fn join_crescents<const N: usize, const C: usize>(
     for (c, slot) in into.iter_mut().enumerate() {
         *slot = c as u16;
     }
-    let root = |into: &[u16; C], mut c: usize| {
-        while usize::from(into[c]) != c {
-            c = usize::from(into[c]);
-        }
-        c
-    };
-    let mut merged = 0u16;
-    for i in 0..k {
-        for j in i + 1..k {
-            let (a, b) = (boxes[i], boxes[j]);
-            let gap = a[0].max(b[0]).saturating_sub(a[2].min(b[2])).max(a[1].max(b[1]).saturating_sub(a[3].min(b[3])));
-            // Two crescents of one circle are no further apart than either spans.
-            let size = (a[2] - a[0]).max(a[3] - a[1]).min((b[2] - b[0]).max(b[3] - b[1]));
-            if gap > size {
-                continue;
-            }
-            let (ri, rj) = (root(&into, i), root(&into, j));
-            if ri == rj {
-                continue;
-            }
-            let extent = f32::from(a[2].max(b[2]) - a[0].min(b[0])).max(f32::from(a[3].max(b[3]) - a[1].min(b[1])));
-            let joins = sums[i]
-                .joint_circle(&sums[j])
-                .is_some_and(|(c, ra, rb)| c.r > 0.5 && c.r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
-            if joins {
-                let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
-                into[hi] = lo as u16;
-                merged += 1;
-            }
-        }
-    }
+    let merged = join_pairs(&boxes, &sums, &mut into);
     // The joined clusters' sums, in the order `merge` numbers them (by their lowest member).
     let mut joined: heapless::Vec<Moments, C> = heapless::Vec::new();
     let mut slot = [0u16; C];
@@ -363,11 +335,78 @@ fn join_crescents<const N: usize, const C: usize>(
     merged
 }
 
+/// The root of cluster `c` in `into` (each root the lowest index of its set).
+fn root(into: &[u16], mut c: usize) -> usize {
+    while let Some(&p) = into.get(c).filter(|&&p| usize::from(p) != c) {
+        c = usize::from(p);
+    }
+    c
+}
+
+/// The pairs test of [`join_crescents`]: clusters with bounding boxes `boxes` (`[x_lo, y_lo,
+/// x_hi, y_hi]`) and power sums `sums` that lie on one circle are joined in the union-find
+/// `into` (each entry at first its own index). Returns how many joins were made.
+fn join_pairs<const C: usize>(boxes: &[[u16; 4]], sums: &[Moments], into: &mut [u16; C]) -> u16 {
+    let k = boxes.len().min(sums.len()).min(C);
+    // Each box's larger side: two crescents of one circle are no further apart than either
+    // spans.
+    let mut sizes = [0u16; C];
+    for (s, b) in sizes.iter_mut().zip(boxes) {
+        *s = b[2].wrapping_sub(b[0]).max(b[3].wrapping_sub(b[1]));
+    }
+    // The clusters by their boxes' top rows (DBSCAN numbers them nearly so: insertion is
+    // quick), so that each meets only the boxes that start within its reach below it. The
+    // sets that come out are the connected components of the pairs that join, whatever the
+    // order the pairs are tried in, and every pair is tried as (lower index, higher index).
+    let mut order = [0u16; C];
+    for c in 0..k {
+        let mut at = c;
+        while at > 0 && boxes[usize::from(order[at - 1])][1] > boxes[c][1] {
+            order[at] = order[at - 1];
+            at -= 1;
+        }
+        order[at] = c as u16;
+    }
+    let mut merged = 0u16;
+    for (p, &oi) in order[..k].iter().enumerate() {
+        let oi = usize::from(oi);
+        let (top_a, reach) = (boxes[oi], sizes[oi]);
+        for &oj in &order[p + 1..k] {
+            let oj = usize::from(oj);
+            // Every later box starts at least this far below this one.
+            if boxes[oj][1].saturating_sub(top_a[3]) > reach {
+                break;
+            }
+            let (i, j) = if oi < oj { (oi, oj) } else { (oj, oi) };
+            let (a, b) = (boxes[i], boxes[j]);
+            let gap = a[0].max(b[0]).saturating_sub(a[2].min(b[2])).max(a[1].max(b[1]).saturating_sub(a[3].min(b[3])));
+            if gap > sizes[i].min(sizes[j]) {
+                continue;
+            }
+            let (ri, rj) = (root(&into[..], i), root(&into[..], j));
+            if ri == rj {
+                continue;
+            }
+            let extent = f32::from(a[2].max(b[2]) - a[0].min(b[0])).max(f32::from(a[3].max(b[3]) - a[1].min(b[1])));
+            let joins = sums[i]
+                .joint_circle(&sums[j])
+                .is_some_and(|(c, ra, rb)| c.r > 0.5 && c.r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
+            if joins {
+                let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
+                into[hi] = lo as u16;
+                merged += 1;
+            }
+        }
+    }
+    merged
+}
+
 /// Whether two fits may be fragments of one circle: each centre lies inside the other circle
 /// (two circles of a grid never overlap like that).
 fn overlapping(a: &Centre, b: &Centre) -> bool {
     let (du, dv) = (a.u - b.u, a.v - b.v);
-    let r = a.r.max(b.r);
+    // The larger radius, without a library call (fitted radii are never NaN).
+    let r = if a.r < b.r { b.r } else { a.r };
     du * du + dv * dv <= r * r
 }
 
@@ -394,6 +433,7 @@ fn join_fitted<const C: usize>(
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
 ) -> u16 {
     let mut merged = 0u16;
     let mut i = 0;
@@ -401,16 +441,19 @@ fn join_fitted<const C: usize>(
         let mut j = i + 1;
         let mut grew = false;
         while j < ranges.len() {
-            let (Some(a), Some(b)) = (fits.get(i).copied().flatten(), fits.get(j).copied().flatten()) else {
-                j += 1;
-                continue;
+            // Borrowed, not copied: most pairs are far apart.
+            let candidate = match (fits.get(i), fits.get(j)) {
+                (Some(Some(a)), Some(Some(b))) => {
+                    overlapping(a, b) && !(a.spread > JOIN_MAX_PART_SPREAD || b.spread > JOIN_MAX_PART_SPREAD)
+                }
+                _ => false,
             };
-            if !overlapping(&a, &b) || a.spread.max(b.spread) > JOIN_MAX_PART_SPREAD {
+            if !candidate {
                 j += 1;
                 continue;
             }
             let (ri, rj) = (ranges[i], ranges[j]);
-            let union = fit_from(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg);
+            let union = fit_with(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg, scratch);
             let Some(u) = union.filter(|u| u.spread <= JOIN_MAX_SPREAD) else {
                 j += 1;
                 continue;
@@ -459,6 +502,7 @@ fn recruit<const C: usize>(
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
 ) {
     let clustered = ranges.iter().map(|r| usize::from(r.end)).max().unwrap_or(0);
     let Some(noise) = events.get_mut(clustered..) else { return };
@@ -494,7 +538,7 @@ fn recruit<const C: usize>(
                 break;
             }
             let start = Circle { u: c.u, v: c.v, vu: c.vu, vv: c.vv, r: c.r, rms: c.spread };
-            match fit_from(&[part, &found[..k]], Some(start), t_ref, cfg) {
+            match fit_with(&[part, &found[..k]], Some(start), t_ref, cfg, scratch) {
                 Some(better) => *f = Some(better),
                 None => break,
             }
@@ -535,6 +579,82 @@ mod test {
         }
         out.sort_by_key(|e| e.t_us);
         out
+    }
+
+    /// Every pair tried in index order: what `join_pairs` must agree with.
+    fn join_pairs_naive(boxes: &[[u16; 4]], sums: &[Moments], into: &mut [u16; 64]) -> u16 {
+        let mut merged = 0;
+        for i in 0..boxes.len() {
+            for j in i + 1..boxes.len() {
+                let (a, b) = (boxes[i], boxes[j]);
+                let gap =
+                    a[0].max(b[0]).saturating_sub(a[2].min(b[2])).max(a[1].max(b[1]).saturating_sub(a[3].min(b[3])));
+                let size = (a[2] - a[0]).max(a[3] - a[1]).min((b[2] - b[0]).max(b[3] - b[1]));
+                let (ri, rj) = (root(&into[..], i), root(&into[..], j));
+                if gap > size || ri == rj {
+                    continue;
+                }
+                let extent = f32::from(a[2].max(b[2]) - a[0].min(b[0])).max(f32::from(a[3].max(b[3]) - a[1].min(b[1])));
+                let joins = sums[i]
+                    .joint_circle(&sums[j])
+                    .is_some_and(|(c, ra, rb)| c.r > 0.5 && c.r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
+                if joins {
+                    into[ri.max(rj)] = ri.min(rj) as u16;
+                    merged += 1;
+                }
+            }
+        }
+        merged
+    }
+
+    #[test]
+    fn crescents_join_as_when_every_pair_is_tried() {
+        let mut joins = 0;
+        for seed in 1..40u32 {
+            // Rings of crescents, some close enough to each other to be candidates, and noise.
+            let circles: Vec<(f32, f32, f32)> = (0..24)
+                .map(|i| {
+                    let (col, row) = ((i % 6) as f32, (i / 6) as f32);
+                    (30.0 + col * (20.0 + seed as f32 * 0.3), 30.0 + row * 22.0 + col * 3.0, 5.0 + (i % 3) as f32)
+                })
+                .collect();
+            let ev = scene(&circles, 40, 300, seed);
+            let mut w: Vec<WindowEvent> =
+                ev.iter().map(|e| WindowEvent { x: e.x, y: e.y, dt_us: e.t_us as u32 }).collect();
+            let mut c: Clusterer<2048, 64> = Clusterer::new();
+            c.cluster(&mut w, SensorSize::DAVIS346, &ClusterConfig::default());
+            let (mut boxes, mut sums) = (Vec::new(), Vec::new());
+            for r in c.group(&mut w) {
+                let part = &w[usize::from(r.start)..usize::from(r.end)];
+                boxes.push(part.iter().fold([u16::MAX, u16::MAX, 0, 0], |b, e| {
+                    [b[0].min(e.x), b[1].min(e.y), b[2].max(e.x), b[3].max(e.y)]
+                }));
+                sums.push(Moments::of(part, 0));
+            }
+            // The clusters in a shuffled order too: the sweep sorts them itself.
+            for shuffle in [false, true] {
+                if shuffle {
+                    let k = boxes.len();
+                    for i in 0..k {
+                        let j = (i * 7 + seed as usize) % k;
+                        boxes.swap(i, j);
+                        sums.swap(i, j);
+                    }
+                }
+                let mut fast = [0u16; 64];
+                let mut naive = [0u16; 64];
+                for (i, (f, n)) in fast.iter_mut().zip(naive.iter_mut()).enumerate() {
+                    (*f, *n) = (i as u16, i as u16);
+                }
+                let m = join_pairs(&boxes, &sums, &mut fast);
+                assert_eq!(m, join_pairs_naive(&boxes, &sums, &mut naive), "seed {seed}");
+                for i in 0..boxes.len() {
+                    assert_eq!(root(&fast, i), root(&naive, i), "seed {seed}, cluster {i}");
+                }
+                joins += m;
+            }
+        }
+        assert!(joins > 20, "the scenes must join crescents: {joins}");
     }
 
     #[test]

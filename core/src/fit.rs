@@ -121,6 +121,21 @@ pub fn fit(events: &[WindowEvent], t_ref_us: u32, cfg: &FitConfig) -> Option<Cen
 /// circle through them when the caller has it already (see [`Moments`]); `None` computes
 /// it.
 pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, cfg: &FitConfig) -> Option<Centre> {
+    let mut scratch = [[0.0f32; 3]; 64];
+    fit_with(parts, start, t_ref_us, cfg, &mut scratch)
+}
+
+/// [`fit_from`] with the caller's scratch for the events' coordinates in the fit's local
+/// frame: a fit of at most `scratch.len()` events converts them once for all its passes, a
+/// larger one converts them again on every pass, `scratch.len()` at a time. The result is
+/// the same, bit for bit, whatever the scratch's size (empty: one event at a time).
+pub fn fit_with(
+    parts: &[&[WindowEvent]],
+    start: Option<Circle>,
+    t_ref_us: u32,
+    cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
+) -> Option<Centre> {
     let n: usize = parts.iter().map(|p| p.len()).sum();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
@@ -147,7 +162,10 @@ pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, 
             if cfg.method == FitMethod::Erwls && start.rms > MAX_START_RMS {
                 return None;
             }
-            cylinder(parts, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
+            let mut one = [[0.0f32; 3]; 1];
+            let scratch = if scratch.is_empty() { &mut one[..] } else { scratch };
+            let mut events = Events::new(parts, n, &frame, scratch);
+            cylinder(&mut events, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
         }
     }?;
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
@@ -352,103 +370,203 @@ struct Pass {
     swe2: f32,
 }
 
-fn pass(parts: &[&[WindowEvent]], f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist: &mut Histogram) -> Pass {
-    // Copies of the loop: a still circle needs neither the time columns nor their sums (and
-    // most clusters are fitted still), and plain least squares no weights.
-    match (tilt, w.reweight) {
-        (true, true) => pass_with::<true, true>(parts, f, p, w, hist),
-        (true, false) => pass_with::<true, false>(parts, f, p, w, hist),
-        (false, true) => pass_with::<false, true>(parts, f, p, w, hist),
-        (false, false) => pass_with::<false, false>(parts, f, p, w, hist),
+/// A fit's events in its local frame, `[x, y, τ]` as [`Frame::local`] gives them: all of
+/// them converted once into the scratch when they fit there, else converted a scratchful at
+/// a time on every pass.
+struct Events<'p, 's> {
+    parts: &'p [&'p [WindowEvent]],
+    n: usize,
+    scratch: &'s mut [[f32; 3]],
+    /// Whether `scratch` holds all `n` events.
+    held: bool,
+}
+
+impl<'p, 's> Events<'p, 's> {
+    /// `n` is the events in `parts`; `scratch` is not empty.
+    fn new(parts: &'p [&'p [WindowEvent]], n: usize, f: &Frame, scratch: &'s mut [[f32; 3]]) -> Self {
+        let held = n <= scratch.len();
+        let mut events = Self { parts, n, scratch, held };
+        if held {
+            events.convert(f, &mut (0, 0));
+        }
+        events
+    }
+
+    /// Converts the events from position `at` (part, index in it) on into the scratch, as
+    /// many as it holds, and moves `at` past them; returns how many.
+    fn convert(&mut self, f: &Frame, at: &mut (usize, usize)) -> usize {
+        let mut m = 0;
+        while m < self.scratch.len() {
+            let Some(part) = self.parts.get(at.0) else { break };
+            let rest = part.get(at.1..).unwrap_or(&[]);
+            let room = self.scratch.get_mut(m..).unwrap_or(&mut []);
+            let take = rest.len().min(room.len());
+            for (o, e) in room.iter_mut().zip(rest) {
+                let (x, y, t) = f.local(e);
+                *o = [x, y, t];
+            }
+            m += take;
+            at.1 += take;
+            if at.1 >= part.len() {
+                *at = (at.0 + 1, 0);
+            }
+        }
+        m
     }
 }
 
+/// The weighted sums one pass accumulates (see [`pass_with`]), carried from one scratchful
+/// of events to the next so that every sum adds its events in the same order.
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    sxx: f32,
+    sxy: f32,
+    syy: f32,
+    sxxt: f32,
+    sxyt: f32,
+    syyt: f32,
+    sxxtt: f32,
+    sxytt: f32,
+    syytt: f32,
+    sx: f32,
+    sy: f32,
+    sxt: f32,
+    syt: f32,
+    sw: f32,
+    gx: f32,
+    gy: f32,
+    gxt: f32,
+    gyt: f32,
+    g1: f32,
+    swe2: f32,
+}
+
+fn pass(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist: &mut Histogram) -> Pass {
+    *hist = Histogram::new();
+    hist.count = ev.n as u32;
+    // exp(−ξ²/2σ²) with the division done once.
+    let scale = 0.5 / (w.sigma * w.sigma);
+    // Copies of the loop: a still circle needs neither the time columns nor their sums (and
+    // most clusters are fitted still), and plain least squares no weights.
+    let run = match (tilt, w.reweight) {
+        (true, true) => pass_with::<true, true>,
+        (true, false) => pass_with::<true, false>,
+        (false, true) => pass_with::<false, true>,
+        (false, false) => pass_with::<false, false>,
+    };
+    let mut s = Sums::default();
+    if ev.held {
+        run(ev.scratch.get(..ev.n).unwrap_or(&[]), p, scale, hist, &mut s);
+    } else {
+        let mut at = (0, 0);
+        loop {
+            let m = ev.convert(f, &mut at);
+            if m == 0 {
+                break;
+            }
+            run(ev.scratch.get(..m).unwrap_or(&[]), p, scale, hist, &mut s);
+        }
+    }
+    // Signs: each entry is a product of two components of J, each carrying a minus sign.
+    let a = [
+        [s.sxx, 0.0, 0.0, 0.0, 0.0],
+        [s.sxy, s.syy, 0.0, 0.0, 0.0],
+        [s.sxxt, s.sxyt, s.sxxtt, 0.0, 0.0],
+        [s.sxyt, s.syyt, s.sxytt, s.syytt, 0.0],
+        [s.sx, s.sy, s.sxt, s.syt, s.sw],
+    ];
+    Pass { a, g: [-s.gx, -s.gy, -s.gxt, -s.gyt, -s.g1], sw: s.sw, swe2: s.swe2 }
+}
+
+/// One pass's sums over `events` (local `[x, y, τ]`), added to `s`.
 // Kept out of line: inlined into the fit, the loop shares the M4F's registers with the code
 // around it and spills its sums (a fifth more instructions per event), for one call saved
 // per iteration.
 #[inline(never)]
 fn pass_with<const TILT: bool, const REWEIGHT: bool>(
-    parts: &[&[WindowEvent]],
-    f: &Frame,
+    events: &[[f32; 3]],
     p: &[f32; 5],
-    w: &Weights,
+    scale: f32,
     hist: &mut Histogram,
-) -> Pass {
-    *hist = Histogram::new();
-    hist.count = parts.iter().map(|p| p.len() as u32).sum();
+    s: &mut Sums,
+) {
     let [u, v, va, vb, r] = *p;
-    // exp(−ξ²/2σ²) with the division done once.
-    let scale = 0.5 / (w.sigma * w.sigma);
     // J = −(cx, cy, cx·τ, cy·τ, 1) for the unit direction (cx, cy) from the centre: JᵀWJ is
     // made of the weighted sums of cx², cx·cy, cy² times 1, τ, τ², of cx, cy times 1, τ, and
     // of w; JᵀWξ of wξ times cx, cy, cx·τ, cy·τ, 1. Locals keep all of them in registers.
-    let (mut sxx, mut sxy, mut syy, mut sxxt, mut sxyt, mut syyt, mut sxxtt, mut sxytt, mut syytt) =
-        (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    let (mut sx, mut sy, mut sxt, mut syt, mut sw) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    let (mut gx, mut gy, mut gxt, mut gyt, mut g1, mut swe2) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
-    // A loop per part rather than a flattened iterator: the iterator's state takes registers
-    // the sums need, and on the M4F they then spill (about a third more instructions).
-    for part in parts {
-        for e in part.iter() {
-            let (x, y, t) = f.local(e);
-            let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
-            let q = dx * dx + dy * dy;
-            // NaN compares false: `q > 0` and finite below.
-            if q.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
-                hist.add(r.abs());
-                continue; // on the axis: no direction, no information about the centre
+    let Sums {
+        mut sxx,
+        mut sxy,
+        mut syy,
+        mut sxxt,
+        mut sxyt,
+        mut syyt,
+        mut sxxtt,
+        mut sxytt,
+        mut syytt,
+        mut sx,
+        mut sy,
+        mut sxt,
+        mut syt,
+        mut sw,
+        mut gx,
+        mut gy,
+        mut gxt,
+        mut gyt,
+        mut g1,
+        mut swe2,
+    } = *s;
+    for &[x, y, t] in events {
+        let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
+        let q = dx * dx + dy * dy;
+        // NaN compares false: `q > 0` and finite below.
+        if q.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            hist.add(r.abs());
+            continue; // on the axis: no direction, no information about the centre
+        }
+        let inv = inv_sqrt(q);
+        let d = q * inv;
+        let xi = d - r;
+        hist.add(xi.abs());
+        let wi = if REWEIGHT {
+            let z = xi * xi * scale;
+            if z > MAX_WEIGHT_EXPONENT {
+                continue;
             }
-            let inv = inv_sqrt(q);
-            let d = q * inv;
-            let xi = d - r;
-            hist.add(xi.abs());
-            let wi = if REWEIGHT {
-                let z = xi * xi * scale;
-                if z > MAX_WEIGHT_EXPONENT {
-                    continue;
-                }
-                exp_neg(z)
-            } else {
-                1.0
-            };
-            let (cx, cy) = (dx * inv, dy * inv);
-            let (wx, wy) = (wi * cx, wi * cy);
-            let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
-            sxx += wxx;
-            sxy += wxy;
-            syy += wyy;
-            sx += wx;
-            sy += wy;
-            sw += wi;
-            let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
-            gx += wxxi;
-            gy += wyxi;
-            g1 += wxi;
-            swe2 += wxi * xi;
-            if TILT {
-                sxxt += wxx * t;
-                sxyt += wxy * t;
-                syyt += wyy * t;
-                let tt = t * t;
-                sxxtt += wxx * tt;
-                sxytt += wxy * tt;
-                syytt += wyy * tt;
-                sxt += wx * t;
-                syt += wy * t;
-                gxt += wxxi * t;
-                gyt += wyxi * t;
-            }
+            exp_neg(z)
+        } else {
+            1.0
+        };
+        let (cx, cy) = (dx * inv, dy * inv);
+        let (wx, wy) = (wi * cx, wi * cy);
+        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
+        sxx += wxx;
+        sxy += wxy;
+        syy += wyy;
+        sx += wx;
+        sy += wy;
+        sw += wi;
+        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
+        gx += wxxi;
+        gy += wyxi;
+        g1 += wxi;
+        swe2 += wxi * xi;
+        if TILT {
+            sxxt += wxx * t;
+            sxyt += wxy * t;
+            syyt += wyy * t;
+            let tt = t * t;
+            sxxtt += wxx * tt;
+            sxytt += wxy * tt;
+            syytt += wyy * tt;
+            sxt += wx * t;
+            syt += wy * t;
+            gxt += wxxi * t;
+            gyt += wyxi * t;
         }
     }
-    // Signs: each entry is a product of two components of J, each carrying a minus sign.
-    let a = [
-        [sxx, 0.0, 0.0, 0.0, 0.0],
-        [sxy, syy, 0.0, 0.0, 0.0],
-        [sxxt, sxyt, sxxtt, 0.0, 0.0],
-        [sxyt, syyt, sxytt, syytt, 0.0],
-        [sx, sy, sxt, syt, sw],
-    ];
-    Pass { a, g: [-gx, -gy, -gxt, -gyt, -g1], sw, swe2 }
+    *s =
+        Sums { sxx, sxy, syy, sxxt, sxyt, syyt, sxxtt, sxytt, syytt, sx, sy, sxt, syt, sw, gx, gy, gxt, gyt, g1, swe2 };
 }
 
 /// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
@@ -457,8 +575,8 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
 /// residuals' median (one iteration behind, from the same pass). The tilt is fitted only for
 /// clusters of at least [`TILT_MIN_EVENTS`]. `None` for events on no circle (see
 /// [`MAX_SPREAD`]).
-fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, cfg: &FitConfig) -> Option<Local> {
-    let n: usize = parts.iter().map(|p| p.len()).sum();
+fn cylinder(events: &mut Events, f: &Frame, start: &Circle, t_ref_ms: f32, cfg: &FitConfig) -> Option<Local> {
+    let n = events.n;
     let tilt = n >= TILT_MIN_EVENTS && f.t_reach > 0.0;
     // The start's centre moved to the cluster's mean time, the origin of the local frame.
     let lead = f.tc - t_ref_ms;
@@ -473,7 +591,7 @@ fn cylinder(parts: &[&[WindowEvent]], f: &Frame, start: &Circle, t_ref_ms: f32, 
     let mut it = 0usize;
     let mut hist = Histogram::new();
     while it < usize::from(cfg.max_iterations) {
-        let ps = pass(parts, f, &p, &w, tilt, &mut hist);
+        let ps = pass(events, f, &p, &w, tilt, &mut hist);
         if ps.sw > 0.0 {
             spread = sqrt(ps.swe2 / ps.sw);
         }
@@ -651,6 +769,35 @@ mod tests {
     }
 
     #[test]
+    fn scratch_size_changes_no_bit_of_circle_fits() {
+        // Tilted and still fits (300 and 40 events), held whole or converted chunk by chunk.
+        for seed in 1..=12u64 {
+            let cyl = Cyl {
+                u: 50.0 + seed as f64 * 0.3,
+                v: 40.0,
+                a: 0.2,
+                b: -0.1,
+                r: 6.0 + seed as f64 * 0.2,
+                edge: 0.5,
+                duration_ms: 6.0,
+                outliers: 0.1,
+            };
+            for n in [300, 40] {
+                let ev = events(&cyl, n, seed);
+                let (a, b) = ev.split_at(n / 3);
+                let bits = |c: Option<Centre>| c.map(|c| [c.u, c.v, c.r, c.vu, c.vv, c.spread].map(f32::to_bits));
+                let want = bits(fit_from(&[a, b], None, 1000, &FitConfig::default()));
+                assert!(want.is_some());
+                for size in [0, 1, 7, 39, 64, 299, 300, 4000] {
+                    let mut scratch = vec![[0.0f32; 3]; size];
+                    let got = bits(fit_with(&[a, b], None, 1000, &FitConfig::default(), &mut scratch));
+                    assert_eq!(got, want, "seed {seed}, {n} events, scratch {size}");
+                }
+            }
+        }
+    }
+
+    #[test]
     fn degenerate_clusters_are_rejected() {
         let few: Vec<_> = (0..5).map(|i| WindowEvent { x: 10 + i, y: 10, dt_us: 0 }).collect();
         assert_eq!(fit(&few, 0, &FitConfig::default()), None);
@@ -688,6 +835,25 @@ mod tests {
             if let Some(c) = fit(&ev, 0, &cfg) {
                 prop_assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
                 prop_assert_eq!(usize::from(c.n), ev.len());
+            }
+        }
+
+        #[test]
+        fn scratch_size_changes_no_bit(
+            ev in prop::collection::vec((0u16..60, 0u16..60, 0u32..20_000), 20..300),
+            split in 0usize..300,
+            sizes in prop::collection::vec(0usize..400, 3),
+        ) {
+            // Clusters of scattered events as well as near-circles: every path of the fit.
+            let ev: Vec<_> = ev.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
+            let (a, b) = ev.split_at(split.min(ev.len()));
+            let cfg = FitConfig { min_events: 1, ..FitConfig::default() };
+            let want = fit_from(&[a, b], None, 500, &cfg);
+            for n in sizes {
+                let mut scratch = vec![[0.0f32; 3]; n];
+                let got = fit_with(&[a, b], None, 500, &cfg, &mut scratch);
+                prop_assert_eq!(got.map(|c| [c.u, c.v, c.r, c.vu, c.vv, c.spread].map(f32::to_bits)),
+                    want.map(|c| [c.u, c.v, c.r, c.vu, c.vv, c.spread].map(f32::to_bits)));
             }
         }
 
