@@ -5,20 +5,26 @@
 //!
 //! `cargo run --release -p evcal-tests --example calibration_seeds -- davis346 4x11 cone good 4 1 2 3 4 5 6 7`
 //! (sensor, pattern, trajectory, light, seconds, then the seeds; about 40 s per seed).
+//! `--windowed` before the arguments simulates only the milliseconds each window needs, as
+//! `evcal demo` does (`eval::simulate_windows`; a few seconds per seed).
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
     detections::{self, WindowRecord},
-    eval::simulate,
+    eval::{simulate, simulate_windows},
     grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Setup},
     sim::{Light, SimConfig, Trajectory},
 };
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let windowed = args.first().is_some_and(|a| a == "--windowed");
+    if windowed {
+        args.remove(0);
+    }
     if args.len() < 6 {
-        eprintln!("usage: calibration_seeds SENSOR PATTERN cone|square|spiral good|low SECONDS SEED...");
+        eprintln!("usage: calibration_seeds [--windowed] SENSOR PATTERN cone|square|spiral good|low SECONDS SEED...");
         std::process::exit(2);
     }
     let trajectory = match args[2].as_str() {
@@ -43,8 +49,9 @@ fn main() {
         };
         let cam = cfg.camera;
         let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).expect("preset pattern");
-        let (events, _) = simulate(cfg, seconds);
         let det = DetectConfig::new(SensorSize { width: cam.width, height: cam.height });
+        let (events, _) =
+            if windowed { simulate_windows(cfg, seconds, det.window, |_| {}) } else { simulate(cfg, seconds) };
         let mut windows = Vec::new();
         detections::run(events.iter().map(|e| Ok(*e)), det, |d| windows.push(WindowRecord::from_detection(d)))
             .expect("simulated events are valid");

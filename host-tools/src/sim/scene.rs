@@ -80,7 +80,7 @@ impl Board {
     /// Signed distance from a board point to the nearest circle's outline (negative inside).
     fn circle_distance(&self, x: f64, y: f64) -> f64 {
         let s = self.spacing;
-        let i0 = (x / s).round() as i64;
+        let i0 = round_i64(x / s);
         // The nearest centre by squared distance, one square root for it: sqrt and the
         // subtraction are monotonic, so this is bit for bit the least of the distances.
         let mut best_sq = f64::INFINITY;
@@ -89,7 +89,7 @@ impl Board {
                 continue;
             }
             let odd = (i % 2) as f64;
-            let j0 = ((y / s - odd) * 0.5).round() as i64;
+            let j0 = round_i64((y / s - odd) * 0.5);
             for j in j0 - 1..=j0 + 1 {
                 if j < 0 || j >= self.rows as i64 {
                     continue;
@@ -173,8 +173,8 @@ impl Layer {
     /// Reflectance and the distance to the nearest edge (at least `cell` when no blob is
     /// near), blurred over `sigma` (metres on this plane).
     fn shade(&self, x: f64, y: f64, sigma: f64) -> (f64, f64) {
-        let cx = ((x - self.origin[0]) / self.cell).floor();
-        let cy = ((y - self.origin[1]) / self.cell).floor();
+        let cx = floor((x - self.origin[0]) / self.cell);
+        let cy = floor((y - self.origin[1]) / self.cell);
         if cx < 0.0 || cy < 0.0 || cx >= self.nx as f64 || cy >= self.ny as f64 {
             return (self.base, self.cell);
         }
@@ -304,6 +304,43 @@ impl Scene {
     }
 }
 
+/// Below this magnitude a double may have a fraction; from it on every double is an integer.
+const FRACTIONS_END: f64 = 4_503_599_627_370_496.0; // 2^52
+
+/// `v.round() as i64`, bit for bit, without a call into the maths library (the baseline x86-64
+/// target has no rounding instruction, and shading rounds twice a pixel): below 2^52 the
+/// truncation and the fraction it leaves are exact.
+fn round_i64(v: f64) -> i64 {
+    if v.abs() < FRACTIONS_END {
+        let t = v as i64;
+        let f = v - t as f64;
+        if f >= 0.5 {
+            t + 1
+        } else if f <= -0.5 {
+            t - 1
+        } else {
+            t
+        }
+    } else {
+        v.round() as i64
+    }
+}
+
+/// `v.floor()`, bit for bit (−0.0 aside, which compares equal), without a call into the
+/// maths library.
+fn floor(v: f64) -> f64 {
+    if v.abs() < FRACTIONS_END {
+        let t = (v as i64) as f64;
+        if t > v {
+            t - 1.0
+        } else {
+            t
+        }
+    } else {
+        v.floor()
+    }
+}
+
 /// The edge profile of a Gaussian blur: Φ(z), the standard normal CDF (erf to 1.5e-7).
 pub fn smooth_step(z: f64) -> f64 {
     0.5 * (1.0 + erf(z * std::f64::consts::FRAC_1_SQRT_2))
@@ -368,6 +405,47 @@ mod tests {
         }
         let below = ERF_IS_ONE - 1e-9;
         assert_eq!(erf(below), erf_formula(below));
+    }
+
+    #[test]
+    fn rounding_without_the_maths_library_is_exact() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut values = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            -1.5,
+            2.5,
+            -2.5,
+            0.49999999999999994,
+            -0.49999999999999994,
+            4503599627370495.5,
+            -4503599627370495.5,
+            FRACTIONS_END,
+            -FRACTIONS_END,
+            1e300,
+            -1e300,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+        ];
+        for _ in 0..200_000 {
+            let scale = 10f64.powi(rng.random_range(-3..18));
+            values.push(rng.random_range(-1.0..1.0) * scale);
+            // Halves and their neighbours.
+            let half = rng.random_range(-1000i64..1000) as f64 + 0.5;
+            let (up, down) = (f64::from_bits(half.to_bits() + 1), f64::from_bits(half.to_bits() - 1));
+            values.extend([half, up, down]);
+        }
+        for v in values {
+            assert_eq!(round_i64(v), v.round() as i64, "round {v:e}");
+            let (a, b) = (floor(v), v.floor());
+            assert!(a == b || (a.is_nan() && b.is_nan()), "floor {v:e}: {a} vs {b}");
+        }
     }
 
     #[test]

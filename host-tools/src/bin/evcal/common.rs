@@ -196,6 +196,23 @@ pub fn run_simulation(cfg: SimConfig, seconds: f64, quiet: bool) -> Result<(Vec<
     Ok((events, sim))
 }
 
+/// Simulates only what the windows of `window` need ([`evcal_host::eval::simulate_windows`]),
+/// with a progress bar.
+pub fn run_windowed_simulation(
+    cfg: SimConfig,
+    seconds: f64,
+    window: WindowConfig,
+    quiet: bool,
+) -> Result<(Vec<Event>, Simulator)> {
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
+        bail!("--seconds must be between 0 and 3600");
+    }
+    let pb = progress_bar((seconds * 1000.0) as u64, quiet, "simulating");
+    let out = evcal_host::eval::simulate_windows(cfg, seconds, window, |t| pb.set_position((t * 1000.0) as u64));
+    pb.finish_and_clear();
+    Ok(out)
+}
+
 /// The truth of every window the detector cuts from `events`.
 pub fn window_truths(events: &[Event], sim: &Simulator, window: WindowConfig) -> Vec<(u32, FrameTruth)> {
     let mut w: Box<evcal_core::window::Windower<{ detections::HOST_MAX_EVENTS }>> =

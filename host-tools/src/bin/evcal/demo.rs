@@ -1,7 +1,7 @@
 //! `evcal demo`: the main job on a built-in default, end to end with known truth.
 
 use crate::calibrate::{export, find_views, list_written, report, solve};
-use crate::common::{outln, run_simulation};
+use crate::common::{outln, run_windowed_simulation};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize};
@@ -21,7 +21,8 @@ use std::{
 
 #[derive(Args)]
 pub struct DemoArgs {
-    /// Simulated seconds (a 4000-event window every 33 ms: 30 windows a second).
+    /// Seconds of motion (a 4000-event window every 33 ms: 30 windows a second; only the
+    /// milliseconds each window needs are simulated).
     #[arg(long, default_value_t = 3.0)]
     pub seconds: f64,
     /// Lighting.
@@ -50,12 +51,23 @@ pub fn run(a: DemoArgs) -> Result<()> {
         a.light.name(),
         a.seconds
     )?;
-    let (events, sim) = run_simulation(cfg, a.seconds, a.quiet)?;
-    outln!("simulated {} events ({:.2} M events/s)", events.len(), events.len() as f64 / a.seconds / 1e6)?;
+    let det = DetectConfig::new(SensorSize { width: c.width, height: c.height });
+    let (events, sim) = run_windowed_simulation(cfg, a.seconds, det.window, a.quiet)?;
+    // As simulate_windows steps.
+    let step_s = (det.window.step_us as f64 * 1e-6).max(1e-3);
+    let ticks = (0u32..).take_while(|&k| f64::from(k) * step_s < a.seconds).count();
+    outln!(
+        "simulated {} events: after each of {} window ticks only the time its {} events take ({:.1} ms on average; {:.2} s of the {:.1} s simulated, the rest skipped)",
+        events.len(),
+        ticks,
+        det.window.events,
+        1e3 * sim.simulated_seconds() / ticks.max(1) as f64,
+        sim.simulated_seconds(),
+        a.seconds
+    )?;
 
     // Every window goes through the firmware's protocol loop, the wire encoder and the
     // host's decoder, exactly as from a device.
-    let det = DetectConfig::new(SensorSize { width: c.width, height: c.height });
     let (windows, link) = replay_virtual(&events, det).context("replaying through the virtual device")?;
     let mut score = eval::Score::default();
     let rules = ScoreRules::default();
