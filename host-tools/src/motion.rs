@@ -21,10 +21,9 @@
 //! windows, and [`estimate`] finds the `δ` that lets one camera explain all views best. The
 //! final solve then runs on centres moved forward by `δ`.
 
-use crate::calib::{self, View};
+use crate::calib::{self, board_key, View};
 use crate::export::{view_residuals, ViewOrigin};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
 
 /// Neighbouring windows further apart than this do not give a direction of motion: a hand
 /// turns within a few tenths of a second.
@@ -55,9 +54,7 @@ pub struct EdgeShift {
 /// [`FULL_DIRECTION_PX`] of displacement; zero where no neighbouring window saw it.
 /// `views` and `origins` pair up, in time order.
 pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
-    let key = |o: &[f64; 3]| ((o[0] * 1e6).round() as i64, (o[1] * 1e6).round() as i64);
-    let maps: Vec<HashMap<(i64, i64), [f64; 2]>> =
-        views.iter().map(|v| v.object.iter().zip(&v.image).map(|(o, i)| (key(o), *i)).collect()).collect();
+    let maps: Vec<_> = views.iter().map(View::by_board_point).collect();
     let near = |a: usize, b: usize| match (origins.get(a), origins.get(b)) {
         (Some(x), Some(y)) => (x.t_s - y.t_s).abs() <= MAX_NEIGHBOUR_GAP_S,
         _ => false,
@@ -70,7 +67,7 @@ pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> 
                 .zip(&views[k].image)
                 .map(|(o, here)| {
                     // The nearest window before and after that saw this board point.
-                    let seen = |j: &usize| maps[*j].get(&key(o)).copied();
+                    let seen = |j: &usize| maps[*j].get(&board_key(o)).copied();
                     let prev = (0..k).rev().take_while(|&j| near(j, k)).find_map(|j| seen(&j));
                     let next = (k + 1..views.len()).take_while(|&j| near(j, k)).find_map(|j| seen(&j));
                     let d = match (prev, next) {

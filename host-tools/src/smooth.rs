@@ -11,9 +11,8 @@
 //! they say. The fit is only made with windows on both sides of the view (no
 //! extrapolation); a point without them keeps its own centre.
 
-use crate::calib::View;
+use crate::calib::{board_key, View};
 use crate::export::ViewOrigin;
-use std::collections::HashMap;
 
 /// How centres are smoothed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -94,9 +93,7 @@ fn robust_fit(mut samples: Vec<Sample>, opts: &SmoothOptions) -> Option<(Vec<Sam
 /// `views` (in time order, paired with `origins`) with each point's centre replaced by the
 /// quadratic fit through the same board point's centres in the windows within reach.
 pub fn smoothed(views: &[View], origins: &[ViewOrigin], opts: &SmoothOptions) -> (Vec<View>, SmoothStats) {
-    let key = |o: &[f64; 3]| ((o[0] * 1e6).round() as i64, (o[1] * 1e6).round() as i64);
-    let maps: Vec<HashMap<(i64, i64), [f64; 2]>> =
-        views.iter().map(|v| v.object.iter().zip(&v.image).map(|(o, i)| (key(o), *i)).collect()).collect();
+    let maps: Vec<_> = views.iter().map(View::by_board_point).collect();
     let mut stats = SmoothStats::default();
     let reach = opts.reach_s.max(1e-9);
     let out = (0..views.len().min(origins.len()))
@@ -111,7 +108,7 @@ pub fn smoothed(views: &[View], origins: &[ViewOrigin], opts: &SmoothOptions) ->
                 .map(|(o, here)| {
                     let samples: Vec<Sample> = near
                         .iter()
-                        .filter_map(|&j| maps[j].get(&key(o)).map(|p| ((origins[j].t_s - t0) / reach, *p)))
+                        .filter_map(|&j| maps[j].get(&board_key(o)).map(|p| ((origins[j].t_s - t0) / reach, *p)))
                         .collect();
                     match robust_fit(samples, opts) {
                         Some((used, p)) => {

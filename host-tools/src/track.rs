@@ -53,10 +53,10 @@ fn board(pattern: &Pattern) -> Vec<[f64; 2]> {
     pattern.object_points().iter().map(|o| [o[0], o[1]]).collect()
 }
 
-/// Every board point's image position under the grid's own homography.
-fn projected(grid: &GridDetection, board: &[[f64; 2]]) -> Option<Vec<[f64; 2]>> {
-    let obj: Vec<[f64; 2]> = grid.points.iter().map(|g| board[g.index]).collect();
-    let img: Vec<[f64; 2]> = grid.points.iter().map(|g| g.image).collect();
+/// Every board point's image position under the homography of the labelled `points`.
+fn projected(points: &[GridPoint], board: &[[f64; 2]]) -> Option<Vec<[f64; 2]>> {
+    let obj: Vec<[f64; 2]> = points.iter().map(|g| board[g.index]).collect();
+    let img: Vec<[f64; 2]> = points.iter().map(|g| g.image).collect();
     let h = fit_homography(&obj, &img)?;
     board.iter().map(|&o| apply(&h, o)).collect()
 }
@@ -141,7 +141,7 @@ pub fn follow(
     let board = board(pattern);
     let n = windows.len().min(found.len());
     let mut anchors: Vec<Option<Vec<[f64; 2]>>> =
-        found.iter().take(n).map(|r| r.as_ref().ok().and_then(|g| projected(g, &board))).collect();
+        found.iter().take(n).map(|r| r.as_ref().ok().and_then(|g| projected(&g.points, &board))).collect();
     let mut out: Vec<Option<GridDetection>> = vec![None; found.len()];
     for _ in 0..MAX_ROUNDS {
         let round: Vec<(usize, GridDetection)> = (0..n)
@@ -152,7 +152,7 @@ pub fn follow(
             break;
         }
         for (k, g) in round {
-            anchors[k] = projected(&g, &board);
+            anchors[k] = projected(&g.points, &board);
             out[k] = Some(g);
         }
     }
@@ -186,7 +186,7 @@ fn follow_one(
     }
     // Refine through the view's own homography, with clutter of the wrong size out.
     let r = median(first.iter().map(|g| g.radius_px).collect())?;
-    let refined = projected(&GridDetection { points: first, homography_rms_px: 0.0 }, board)?;
+    let refined = projected(&first, board)?;
     let points = matched(&refined, &windows[k], opts.refined_gate, Some((r, opts.radius_tolerance)));
     if points.len() < needed {
         return None;

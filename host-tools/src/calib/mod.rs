@@ -41,6 +41,23 @@ pub struct View {
     pub image: Vec<[f64; 2]>,
 }
 
+impl View {
+    /// Where the view saw each board point, keyed by [`board_key`]: the lookup that follows
+    /// one board point from view to view.
+    pub(crate) fn by_board_point(&self) -> std::collections::HashMap<BoardKey, [f64; 2]> {
+        self.object.iter().zip(&self.image).map(|(o, i)| (board_key(o), *i)).collect()
+    }
+}
+
+/// A board point as a hashable key: its coordinates in micrometres (board points are on a
+/// lattice of millimetres, so rounding never merges two).
+pub(crate) type BoardKey = (i64, i64);
+
+/// The [`BoardKey`] of the board point `o`.
+pub(crate) fn board_key(o: &[f64; 3]) -> BoardKey {
+    ((o[0] * 1e6).round() as i64, (o[1] * 1e6).round() as i64)
+}
+
 /// What the solve may change, and how hard it tries.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Options {
