@@ -127,6 +127,31 @@ fn median(mut v: Vec<f64>) -> Option<f64> {
 /// in a row is followed in from both ends).
 pub const MAX_ROUNDS: usize = 8;
 
+/// Why a window the finder missed was not followed either.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Unfollowed {
+    /// The finder labelled the window itself: nothing to follow.
+    Found,
+    /// No anchors near enough in time to predict the grid from.
+    NoAnchors,
+    /// Too few centres near the predicted points (how many there were).
+    TooFewMatched(usize),
+    /// Too few left after the refinement through the view's own homography.
+    TooFewRefined(usize),
+    /// The labelled points failed the finder's homography check.
+    Inconsistent,
+}
+
+/// A window labelled from the windows around it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Followed {
+    /// The grid as labelled.
+    pub grid: GridDetection,
+    /// Farthest a labelled centre lies from where the anchors put its board point, in local
+    /// grid spacings: the margin against a wrong label, which would be a whole spacing off.
+    pub prediction_offset: f64,
+}
+
 /// Labels, where it can, the windows the finder missed: `found[k]` is the finder's result
 /// for `windows[k]` (windows in time order); the answer holds a grid for each missed window
 /// that its anchors label with confidence, `None` elsewhere (and for every window the finder
@@ -138,22 +163,40 @@ pub fn follow(
     pattern: &Pattern,
     opts: &TrackOptions,
 ) -> Vec<Option<GridDetection>> {
+    follow_explained(windows, found, pattern, opts).into_iter().map(|r| r.ok().map(|f| f.grid)).collect()
+}
+
+/// As [`follow`], with how far each followed grid lay from its prediction and why each
+/// window left was not followed (its last round's reason).
+pub fn follow_explained(
+    windows: &[WindowRecord],
+    found: &[Result<GridDetection, Miss>],
+    pattern: &Pattern,
+    opts: &TrackOptions,
+) -> Vec<Result<Followed, Unfollowed>> {
     let board = board(pattern);
     let n = windows.len().min(found.len());
     let mut anchors: Vec<Option<Vec<[f64; 2]>>> =
         found.iter().take(n).map(|r| r.as_ref().ok().and_then(|g| projected(g, &board))).collect();
-    let mut out: Vec<Option<GridDetection>> = vec![None; found.len()];
+    let mut out: Vec<Result<Followed, Unfollowed>> =
+        found.iter().map(|r| Err(if r.is_ok() { Unfollowed::Found } else { Unfollowed::NoAnchors })).collect();
     for _ in 0..MAX_ROUNDS {
-        let round: Vec<(usize, GridDetection)> = (0..n)
-            .filter(|&k| found[k].is_err() && out[k].is_none())
-            .filter_map(|k| follow_one(windows, &anchors, k, &board, pattern, opts).map(|g| (k, g)))
-            .collect();
+        let mut round: Vec<(usize, Followed)> = Vec::new();
+        for k in 0..n {
+            if found[k].is_ok() || out[k].is_ok() {
+                continue;
+            }
+            match follow_one(windows, &anchors, k, &board, pattern, opts) {
+                Ok(g) => round.push((k, g)),
+                Err(why) => out[k] = Err(why),
+            }
+        }
         if round.is_empty() {
             break;
         }
         for (k, g) in round {
-            anchors[k] = projected(&g, &board);
-            out[k] = Some(g);
+            anchors[k] = projected(&g.grid, &board);
+            out[k] = Ok(g);
         }
     }
     out
@@ -167,32 +210,38 @@ fn follow_one(
     board: &[[f64; 2]],
     pattern: &Pattern,
     opts: &TrackOptions,
-) -> Option<GridDetection> {
+) -> Result<Followed, Unfollowed> {
     let needed = ((opts.min_fraction.clamp(0.0, 1.0) * board.len() as f64).ceil() as usize).max(6);
     let t = windows[k].t_ref_us;
     let near = |j: usize| windows[j].t_ref_us.abs_diff(t) <= opts.max_gap_us;
     // The two nearest anchors on each side, in time order.
     let mut around: Vec<(u64, Vec<[f64; 2]>)> = Vec::new();
     for j in (0..k).rev().take_while(|&j| near(j)).filter(|&j| anchors[j].is_some()).take(2) {
-        around.insert(0, (windows[j].t_ref_us, anchors[j].clone()?));
+        around.insert(0, (windows[j].t_ref_us, anchors[j].clone().ok_or(Unfollowed::NoAnchors)?));
     }
     for j in (k + 1..anchors.len()).take_while(|&j| near(j)).filter(|&j| anchors[j].is_some()).take(2) {
-        around.push((windows[j].t_ref_us, anchors[j].clone()?));
+        around.push((windows[j].t_ref_us, anchors[j].clone().ok_or(Unfollowed::NoAnchors)?));
     }
-    let pred = predict(&around, t)?;
+    let pred = predict(&around, t).ok_or(Unfollowed::NoAnchors)?;
     let first = matched(&pred, &windows[k], opts.gate, None);
     if first.len() < needed {
-        return None;
+        return Err(Unfollowed::TooFewMatched(first.len()));
     }
     // Refine through the view's own homography, with clutter of the wrong size out.
-    let r = median(first.iter().map(|g| g.radius_px).collect())?;
-    let refined = projected(&GridDetection { points: first, homography_rms_px: 0.0 }, board)?;
+    let r = median(first.iter().map(|g| g.radius_px).collect()).ok_or(Unfollowed::TooFewMatched(0))?;
+    let refined =
+        projected(&GridDetection { points: first, homography_rms_px: 0.0 }, board).ok_or(Unfollowed::Inconsistent)?;
     let points = matched(&refined, &windows[k], opts.refined_gate, Some((r, opts.radius_tolerance)));
     if points.len() < needed {
-        return None;
+        return Err(Unfollowed::TooFewRefined(points.len()));
     }
-    let homography_rms_px = homography_check(&points, pattern).ok()?;
-    Some(GridDetection { points, homography_rms_px })
+    let homography_rms_px = homography_check(&points, pattern).map_err(|_| Unfollowed::Inconsistent)?;
+    let spacing = spacings(&pred);
+    let prediction_offset = points
+        .iter()
+        .map(|g| (g.image[0] - pred[g.index][0]).hypot(g.image[1] - pred[g.index][1]) / spacing[g.index])
+        .fold(0.0, f64::max);
+    Ok(Followed { grid: GridDetection { points, homography_rms_px }, prediction_offset })
 }
 
 #[cfg(test)]
