@@ -132,6 +132,13 @@ fn main() {
         "found in {n_found} of {n_in_view} wholly-in-view windows ({:.1} %), {n_followed} followed; wrong orderings {wrong} (all windows)",
         100.0 * n_found as f64 / n_in_view.max(1) as f64
     );
+    // The longest run of windows the finder missed in a row: how far following must reach.
+    let (mut run, mut longest) = (0usize, 0usize);
+    for r in &found {
+        run = if r.is_err() { run + 1 } else { 0 };
+        longest = longest.max(run);
+    }
+    println!("longest run of windows the finder missed in a row: {longest}");
     println!("followed grids: fewest points {smallest}, farthest from the prediction {worst_offset:.3} spacings");
     for (r, n) in &reasons {
         println!("  missed: {n:3} {r}");
