@@ -262,6 +262,25 @@ fn span(points: &[GridPoint], pattern: &Pattern) -> (usize, usize) {
     (cols.len(), rows.len())
 }
 
+/// The points with at least one diagonal neighbour on the board (`(i ± 1, y ± S)`) among
+/// them. A lone point lies where the homographies only extrapolate (a side of the board
+/// unseen in this window and in the partial windows before it): a blob of clutter there can
+/// agree with both to a few pixels and still be nearer another board point.
+fn with_neighbours(points: Vec<GridPoint>, pattern: &Pattern) -> Vec<GridPoint> {
+    let cell = |g: &GridPoint| {
+        let (i, j) = (g.index / pattern.rows, g.index % pattern.rows);
+        (i as i64, (2 * j + i % 2) as i64)
+    };
+    let cells: std::collections::HashSet<(i64, i64)> = points.iter().map(cell).collect();
+    points
+        .into_iter()
+        .filter(|g| {
+            let (i, y) = cell(g);
+            [(1, 1), (1, -1), (-1, 1), (-1, -1)].iter().any(|&(di, dy)| cells.contains(&(i + di, y + dy)))
+        })
+        .collect()
+}
+
 /// Window `k` labelled from the anchors around it, if they say with confidence.
 ///
 /// Each centre takes its label from where the anchors put the board points (within
@@ -303,6 +322,7 @@ fn follow_one(
         projected(&GridDetection { points: first, homography_rms_px: 0.0 }, board).ok_or(Unfollowed::Inconsistent)?;
     let points =
         matched(&refined, &windows[k], opts.refined_gate, Some((r, opts.radius_tolerance)), Some((&pred, opts.gate)));
+    let points = with_neighbours(points, pattern);
     if points.len() < needed {
         return Err(Unfollowed::TooFewRefined(points.len()));
     }
@@ -497,6 +517,90 @@ mod test {
             for p in &g.points {
                 let want = shots[k][p.index];
                 assert!((p.image[0] - want[0]).hypot(p.image[1] - want[1]) < 1e-3, "window {k}: point {}", p.index);
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Whatever the smooth motion, the losses (scattered, or a whole side of the board)
+        /// and the clutter (of the grid's own size): every point followed is labelled with
+        /// the board point whose true place is nearest.
+        #[test]
+        fn never_a_wrong_label(
+            velocity in (-6.0f64..6.0, -6.0f64..6.0),
+            accel in (-0.4f64..0.4, -0.4f64..0.4),
+            spin_deg in -1.5f64..1.5,
+            growth in -0.015f64..0.015,
+            losses in proptest::collection::vec((0.0f64..0.85, 0.0f64..6.3, proptest::bool::ANY), 20),
+            clutter in proptest::collection::vec((0.0f64..346.0, 0.0f64..260.0), 0..30),
+            seed in 0u64..1000,
+        ) {
+            let pattern = Pattern::new(4, 11, 0.02).unwrap();
+            let b = board(&pattern);
+            let n = losses.len();
+            let truth: Vec<Vec<[f64; 2]>> = (0..n)
+                .map(|k| {
+                    let t = k as f64;
+                    let (a, sc) = ((spin_deg * t).to_radians(), 500.0 * (1.0 + growth * t));
+                    let shift = [
+                        40.0 + velocity.0 * t + 0.5 * accel.0 * t * t,
+                        40.0 + velocity.1 * t + 0.5 * accel.1 * t * t,
+                    ];
+                    b.iter()
+                        .map(|o| {
+                            let (x, y) = (sc * o[0], sc * o[1]);
+                            [shift[0] + x * a.cos() - y * a.sin(), shift[1] + x * a.sin() + y * a.cos()]
+                        })
+                        .collect()
+                })
+                .collect();
+            let mut rng = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+            let mut uniform = move || {
+                rng ^= rng << 13;
+                rng ^= rng >> 7;
+                rng ^= rng << 17;
+                (rng >> 11) as f64 / (1u64 << 53) as f64
+            };
+            let windows: Vec<WindowRecord> = truth
+                .iter()
+                .zip(&losses)
+                .enumerate()
+                .map(|(k, (pts, &(lost, angle, side)))| {
+                    // Lose a random share of the circles, or every circle on one side of a
+                    // line through the board's middle.
+                    let mid = pts.iter().fold([0.0, 0.0], |m, p| [m[0] + p[0] / 44.0, m[1] + p[1] / 44.0]);
+                    let mut kept: Vec<[f64; 2]> = Vec::new();
+                    for p in pts {
+                        let gone = if side {
+                            (p[0] - mid[0]) * angle.cos() + (p[1] - mid[1]) * angle.sin() > 0.0
+                        } else {
+                            uniform() < lost
+                        };
+                        if !gone {
+                            kept.push([p[0] + 0.4 * (uniform() - 0.5), p[1] + 0.4 * (uniform() - 0.5)]);
+                        }
+                    }
+                    kept.extend(clutter.iter().map(|&(u, v)| [u + 3.0 * k as f64, v]));
+                    window(k as u32, 33_000 * k as u64, &kept)
+                })
+                .collect();
+            // The finder labelled the first two and the last two windows whole.
+            let found: Vec<Result<GridDetection, Miss>> = (0..n)
+                .map(|k| if k < 2 || k >= n - 2 { Ok(grid(&truth[k])) } else { Err(Miss::TooFewPoints) })
+                .collect();
+            for (k, g) in follow(&windows, &found, &pattern, &TrackOptions::default()).iter().enumerate() {
+                let Some(g) = g else { continue };
+                for p in &g.points {
+                    let nearest = (0..44)
+                        .min_by(|&x, &y| {
+                            let d = |i: usize| (truth[k][i][0] - p.image[0]).hypot(truth[k][i][1] - p.image[1]);
+                            d(x).total_cmp(&d(y))
+                        })
+                        .unwrap();
+                    proptest::prop_assert_eq!(nearest, p.index, "window {}: point at {:?}", k, p.image);
+                }
             }
         }
     }
