@@ -132,7 +132,9 @@ pub struct GridPoint {
 /// The grid found in one window.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GridDetection {
-    /// The circles found, by index; all of them, or a part spanning every row and column.
+    /// The circles found, by index: from the finder all of them, or a part spanning every
+    /// row and column; followed from the windows around ([`crate::track`]) possibly a
+    /// smaller part.
     pub points: Vec<GridPoint>,
     /// RMS distance of the points from a homography fitted to them, px (distortion makes
     /// it a few tenths even for perfect centres).

@@ -3,3 +3,4 @@
 pub mod faery;
 pub mod firmware;
 pub mod link;
+pub mod recorded;

@@ -11,12 +11,13 @@
 //! about a tenth of a pixel: the pipeline measures that shift from the views and takes it
 //! out before the final solve, and the test checks the measurement against the trailing
 //! measured from the truth. Not every target is met: fx reads 0.12–0.16 % long with this
-//! seed, the worst of seven (`examples/calibration_seeds.rs` runs the cone case over seeds);
+//! seed, among the worst of seven (`examples/calibration_seeds.rs` runs the cone case over seeds);
 //! what remains is tied to the centres' offset across their motion (a constant 0.03 px there
 //! moves fx by 0.1 %), not yet explained. With the true centres in the same views the solve
 //! is exact. In low light a 4000-event window often holds too few events of part of the
-//! grid for it to be labelled, even from the windows around it. The figures are in the
-//! issue's closing note.
+//! grid for the finder to label it; the windows around it label the part that was seen
+//! (`evcal_host::track`), which counts as found but is not solved on. The figures are in
+//! the closing note.
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
@@ -178,7 +179,8 @@ fn guard(f: &Figures, low_light: bool) {
     assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
     // Good light: the 0.13 px.
     assert!(f.rms_px < if low_light { 0.16 } else { 0.13 }, "RMS {:.3} px", f.rms_px);
-    let found = if low_light { 0.75 } else { 0.92 };
+    // Low light too since parts of the grid are followed (83.8 % before, 96.4 % after).
+    let found = 0.92;
     assert!(f.found_in_view > found, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
     let shift = f.shift_estimate.expect("the edge shift is measured");
     assert!(
