@@ -136,6 +136,23 @@ pub fn fit_with(
     cfg: &FitConfig,
     scratch: &mut [[f32; 3]],
 ) -> Option<Centre> {
+    fit_within(parts, start, t_ref_us, cfg, scratch, MAX_SPREAD)
+}
+
+/// [`fit_with`] for a caller that needs the fit only if its weighted spread ends within
+/// `give_up` px (less than the default [`MAX_SPREAD`] of 3 px): an eRWLS fit whose spread is
+/// beyond `give_up` from its second pass on ends there with `None`, without its remaining
+/// passes. The spread shrinks only slowly once the kernel follows the residuals' median
+/// (see [`MAX_SPREAD`]), so a fit beyond `give_up` after two passes would end beyond a
+/// threshold well below it.
+pub fn fit_within(
+    parts: &[&[WindowEvent]],
+    start: Option<Circle>,
+    t_ref_us: u32,
+    cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
+    give_up: f32,
+) -> Option<Centre> {
     let n: usize = parts.iter().map(|p| p.len()).sum();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
@@ -165,7 +182,7 @@ pub fn fit_with(
             let mut one = [[0.0f32; 3]; 1];
             let scratch = if scratch.is_empty() { &mut one[..] } else { scratch };
             let mut events = Events::new(parts, n, &frame, scratch);
-            cylinder(&mut events, &frame, &start, t_ref_us as f32 * 1e-3, cfg)
+            cylinder(&mut events, &frame, &start, t_ref_us as f32 * 1e-3, cfg, give_up.min(MAX_SPREAD))
         }
     }?;
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
@@ -575,7 +592,14 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
 /// residuals' median (one iteration behind, from the same pass). The tilt is fitted only for
 /// clusters of at least [`TILT_MIN_EVENTS`]. `None` for events on no circle (see
 /// [`MAX_SPREAD`]).
-fn cylinder(events: &mut Events, f: &Frame, start: &Circle, t_ref_ms: f32, cfg: &FitConfig) -> Option<Local> {
+fn cylinder(
+    events: &mut Events,
+    f: &Frame,
+    start: &Circle,
+    t_ref_ms: f32,
+    cfg: &FitConfig,
+    max_spread: f32,
+) -> Option<Local> {
     let n = events.n;
     let tilt = n >= TILT_MIN_EVENTS && f.t_reach > 0.0;
     // The start's centre moved to the cluster's mean time, the origin of the local frame.
@@ -595,7 +619,7 @@ fn cylinder(events: &mut Events, f: &Frame, start: &Circle, t_ref_ms: f32, cfg: 
         if ps.sw > 0.0 {
             spread = sqrt(ps.swe2 / ps.sw);
         }
-        if reweight && it >= 1 && spread > MAX_SPREAD {
+        if reweight && it >= 1 && spread > max_spread {
             return None;
         }
         // A small Marquardt damping, with a floor, keeps a velocity the window cannot observe
