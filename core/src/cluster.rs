@@ -699,9 +699,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 None => self.by_rows(events, &m, min_pts, &mut stats, &mut work),
             }
         }
-        for l in &mut self.labels[..n] {
-            *l &= MASK;
-        }
+        // Every sweep ends in `settle_borders`, which leaves no `CORE` mark behind.
         stats.distance_checks = work;
         stats
     }
@@ -1066,12 +1064,14 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     }
 
     /// Turns each border point's best core neighbour (an index, or [`NONE`]) into that core
-    /// point's cluster, or noise.
+    /// point's cluster, or noise, and each core point's label into its cluster (unmarked).
     #[inline(never)]
     fn settle_borders(&mut self, n: usize, stats: &mut ClusterStats) {
         for i in 0..n {
             let l = self.labels[i];
             if l & CORE != 0 {
+                // Border points after this one read its cluster below, marked or not.
+                self.labels[i] = l & MASK;
                 continue;
             }
             self.labels[i] = match self.labels.get(usize::from(l)).filter(|_| l != NONE) {
