@@ -518,6 +518,9 @@ fn recruit<const C: usize>(
     sort_by_pixel(noise);
     let (events, noise) = events.split_at(clustered);
     let t_ref_ms = t_ref as f32 * 1e-3;
+    // The largest |τ| of any noise event, ms: how long a circle moves for any of them.
+    let t_last_ms = noise.iter().fold(0, |m, e| m.max(e.dt_us)) as f32 * 1e-3;
+    let t_far = t_ref_ms.max(t_last_ms - t_ref_ms);
     let mut found = [WindowEvent::default(); MAX_RECRUITS];
     for (r, f) in ranges.iter().zip(fits.iter_mut()) {
         if f.is_none() {
@@ -534,8 +537,16 @@ fn recruit<const C: usize>(
             let (y_lo, y_hi) = ((c.v - reach).max(0.0) as u16, (c.v + reach).min(65535.0) as u16);
             let lo = noise.partition_point(|e| e.y < y_lo);
             let hi = noise.partition_point(|e| e.y <= y_hi);
+            // The columns of the same band: an event beyond them is further from the circle
+            // than the gate at any time of the window (the pixel of margin covers the
+            // approximate square root below), so it is passed over without one.
+            let reach_x = c.r + RECRUIT_GATE + c.vu.abs() * t_far + 1.0;
+            let (x_lo, x_hi) = ((c.u - reach_x).max(0.0) as u16, (c.u + reach_x).min(65535.0) as u16);
             let mut k = 0;
             for e in &noise[lo..hi] {
+                if e.x < x_lo || e.x > x_hi {
+                    continue;
+                }
                 let t = e.dt_us as f32 * 1e-3 - t_ref_ms;
                 let (dx, dy) = (f32::from(e.x) - c.u - c.vu * t, f32::from(e.y) - c.v - c.vv * t);
                 if (sqrt(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
