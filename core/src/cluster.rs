@@ -267,16 +267,22 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         pos[i] = *b;
         *b = b.wrapping_add(1);
     }
-    // Each swap puts one event in its place for good.
+    // Each cycle of the permutation in one go: the event carried is put in its place and the
+    // one there taken up, until the cycle closes (a load and a store per event, where
+    // swapping into place moved each event and its place twice).
     for i in 0..n {
-        loop {
-            let j = usize::from(pos[i]);
-            if j == i || j >= n {
-                break;
-            }
-            events.swap(i, j);
-            pos.swap(i, j);
+        let mut j = usize::from(pos[i]);
+        if j == i {
+            continue;
         }
+        let mut carried = events[i];
+        pos[i] = i as u16;
+        while j != i {
+            let (Some(slot), Some(p)) = (events.get_mut(j), pos.get_mut(j)) else { break };
+            carried = core::mem::replace(slot, carried);
+            j = usize::from(core::mem::replace(p, j as u16));
+        }
+        events[i] = carried;
     }
     true
 }
