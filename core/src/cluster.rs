@@ -1206,7 +1206,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         }
     }
 
-    #[inline]
+    // Inlined: a call per link cost more than the link itself (most links join points
+    // already in one set).
+    #[inline(always)]
     fn union(&mut self, a: usize, b: usize) {
         let (la, lb) = (self.labels[a] & MASK, self.labels[b] & MASK);
         // Most links join points already in one set, often through the same parent.
