@@ -389,8 +389,8 @@ fn join_pairs<const C: usize>(boxes: &[[u16; 4]], sums: &[Moments], into: &mut [
             }
             let extent = f32::from(a[2].max(b[2]) - a[0].min(b[0])).max(f32::from(a[3].max(b[3]) - a[1].min(b[1])));
             let joins = sums[i]
-                .joint_circle(&sums[j])
-                .is_some_and(|(c, ra, rb)| c.r > 0.5 && c.r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
+                .joint_radius(&sums[j])
+                .is_some_and(|(r, ra, rb)| r > 0.5 && r <= extent && ra <= JOIN_MAX_RMS && rb <= JOIN_MAX_RMS);
             if joins {
                 let (lo, hi) = if ri < rj { (ri, rj) } else { (rj, ri) };
                 into[hi] = lo as u16;
