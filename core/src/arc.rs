@@ -15,7 +15,7 @@
 //! Sums are taken about a point of the cluster (its first event), so that `f32` holds them
 //! to a few parts in a million over the few tens of pixels a circle spans.
 
-use crate::window::WindowEvent;
+use crate::{math::max, window::WindowEvent};
 
 /// Exponents `(a, b, c)` of the power sums `Σ xᵃ yᵇ τᶜ`, in storage order: the products the
 /// moving-circle fit needs (its rows `x, y, τx, τy, 1, τ` with one another and with
@@ -283,7 +283,7 @@ fn rms(s: &[f32; 31], theta: &[f32; 6], r: f32) -> f32 {
         return f32::INFINITY;
     }
     // The residual is a difference of large sums: rounding can take it a little below zero.
-    libm::sqrtf(algebraic_residual(s, theta).max(0.0) / n) / (2.0 * r)
+    libm::sqrtf(max(algebraic_residual(s, theta), 0.0) / n) / (2.0 * r)
 }
 
 /// Kåsa's moving-circle fit to the summed power sums `parts`, all about `origin`; also its

@@ -22,7 +22,7 @@
 
 use crate::{
     arc::{solve_spd, Circle, Moments},
-    math::{exp_neg, inv_sqrt, sqrt},
+    math::{exp_neg, inv_sqrt, max, sqrt},
     window::WindowEvent,
 };
 
@@ -170,7 +170,7 @@ pub fn fit_within(
             })?;
             // A start larger than the events' extent, or centred far outside them, is the
             // algebraic fit of a nearly straight edge: no circle, and no fit will make one.
-            let extent = 2.0 * frame.half_w.max(frame.half_h) + 1.0;
+            let extent = 2.0 * max(frame.half_w, frame.half_h) + 1.0;
             let (du, dv) = ((start.u - frame.x0).abs(), (start.v - frame.y0).abs());
             if start.r > 2.0 * extent || du > frame.half_w + 2.0 * start.r || dv > frame.half_h + 2.0 * start.r {
                 return None;
@@ -235,7 +235,7 @@ impl Frame {
             x0: (f32::from(x_lo) + f32::from(x_hi)) * 0.5,
             y0: (f32::from(y_lo) + f32::from(y_hi)) * 0.5,
             tc,
-            t_reach: (tc - t_lo as f32 * 1e-3).max(t_hi as f32 * 1e-3 - tc),
+            t_reach: max(tc - t_lo as f32 * 1e-3, t_hi as f32 * 1e-3 - tc),
             half_w: (f32::from(x_hi) - f32::from(x_lo)) * 0.5,
             half_h: (f32::from(y_hi) - f32::from(y_lo)) * 0.5,
         }
@@ -255,7 +255,7 @@ impl Frame {
         let finite = [u_ref, v_ref, a, b, r, l.spread].iter().all(|q| q.is_finite());
         // A circle larger than the cluster's whole extent is a fit to a nearly straight
         // edge; a centre beyond one radius outside the box belongs to no circle of these events.
-        let extent = 2.0 * self.half_w.max(self.half_h) + 1.0;
+        let extent = 2.0 * max(self.half_w, self.half_h) + 1.0;
         let plausible = r > 0.5 && r <= extent && u.abs() <= self.half_w + r && v.abs() <= self.half_h + r;
         (finite && plausible).then_some(Centre {
             u: u_ref,
@@ -338,7 +338,7 @@ const MAX_START_RMS: f32 = 5.0;
 
 /// The weights' σ for a median absolute residual (1.4826·MAD is σ for Gaussian inliers).
 fn kernel(mad: f32) -> f32 {
-    KERNEL_WIDTH * (1.4826 * mad).max(MIN_SIGMA)
+    KERNEL_WIDTH * max(1.4826 * mad, MIN_SIGMA)
 }
 
 /// Histogram of absolute residuals, for their median without a sort or a buffer.
@@ -617,7 +617,7 @@ fn cylinder(
     let reweight = cfg.method == FitMethod::Erwls;
     // The start's RMS residual is not robust (clutter in the cluster inflates it), but it only
     // sets the first iteration's kernel: the histogram of that pass sets the next one.
-    let mut w = Weights { reweight, sigma: KERNEL_WIDTH * start.rms.max(MIN_SIGMA) };
+    let mut w = Weights { reweight, sigma: KERNEL_WIDTH * max(start.rms, MIN_SIGMA) };
     let mut converged = false;
     let mut spread = f32::INFINITY;
     let mut it = 0usize;
@@ -634,7 +634,7 @@ fn cylinder(
         // A small Marquardt damping, with a floor, keeps a velocity the window cannot observe
         // at zero rather than making the system singular.
         let mut a = ps.a;
-        let floor = 1e-6 * a[4][4].max(1.0);
+        let floor = 1e-6 * max(a[4][4], 1.0);
         for (i, row) in a.iter_mut().enumerate() {
             row[i] += 1e-4 * ps.a[i][i] + floor;
         }
@@ -653,7 +653,7 @@ fn cylinder(
         };
         let Some(mut step) = step else { break };
         let moved = sqrt(step[0] * step[0] + step[1] * step[1]);
-        let limit = MAX_STEP_FRACTION * p[4].abs().max(1.0);
+        let limit = MAX_STEP_FRACTION * max(p[4].abs(), 1.0);
         if moved > limit || !moved.is_finite() {
             let shrink = if moved.is_finite() { limit / moved } else { 0.0 };
             step = step.map(|s| s * shrink);
@@ -665,8 +665,8 @@ fn cylinder(
         if reweight {
             w.sigma = kernel(hist.median());
         }
-        let tilted = step[2].abs().max(step[3].abs()) * f.t_reach;
-        if moved.max(step[4].abs()).max(tilted) < STEP_TOLERANCE {
+        let tilted = max(step[2].abs(), step[3].abs()) * f.t_reach;
+        if max(max(moved, step[4].abs()), tilted) < STEP_TOLERANCE {
             converged = true;
             break;
         }
