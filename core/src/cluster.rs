@@ -238,11 +238,15 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     if w > SORT_BUCKETS || h > SORT_BUCKETS || n > usize::from(u16::MAX) {
         return false;
     }
-    // `order` lists the events by column, in time within one.
+    // `order` lists the events by column, in time within one. The events of each column
+    // and of each row are counted in one pass.
     let mut next = [0u16; SORT_BUCKETS + 1];
+    let mut by_row = [0u16; SORT_BUCKETS + 1];
     for e in events.iter() {
         let b = usize::from(e.x - min_x) + 1;
         next[b] = next[b].wrapping_add(1);
+        let b = usize::from(e.y - min_y) + 1;
+        by_row[b] = by_row[b].wrapping_add(1);
     }
     for b in 1..=w {
         next[b] = next[b].wrapping_add(next[b - 1]);
@@ -253,11 +257,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         *b = b.wrapping_add(1);
     }
     // Taken by row in that order, each event's place in the result.
-    next[..=h].fill(0);
-    for e in events.iter() {
-        let b = usize::from(e.y - min_y) + 1;
-        next[b] = next[b].wrapping_add(1);
-    }
+    let next = &mut by_row;
     for b in 1..=h {
         next[b] = next[b].wrapping_add(next[b - 1]);
     }
