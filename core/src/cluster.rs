@@ -238,11 +238,15 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     if w > SORT_BUCKETS || h > SORT_BUCKETS || n > usize::from(u16::MAX) {
         return false;
     }
-    // `order` lists the events by column, in time within one.
+    // `order` lists the events by column, in time within one. The events of each column
+    // and of each row are counted in one pass.
     let mut next = [0u16; SORT_BUCKETS + 1];
+    let mut by_row = [0u16; SORT_BUCKETS + 1];
     for e in events.iter() {
         let b = usize::from(e.x - min_x) + 1;
         next[b] = next[b].wrapping_add(1);
+        let b = usize::from(e.y - min_y) + 1;
+        by_row[b] = by_row[b].wrapping_add(1);
     }
     for b in 1..=w {
         next[b] = next[b].wrapping_add(next[b - 1]);
@@ -253,11 +257,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         *b = b.wrapping_add(1);
     }
     // Taken by row in that order, each event's place in the result.
-    next[..=h].fill(0);
-    for e in events.iter() {
-        let b = usize::from(e.y - min_y) + 1;
-        next[b] = next[b].wrapping_add(1);
-    }
+    let next = &mut by_row;
     for b in 1..=h {
         next[b] = next[b].wrapping_add(next[b - 1]);
     }
@@ -267,16 +267,22 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         pos[i] = *b;
         *b = b.wrapping_add(1);
     }
-    // Each swap puts one event in its place for good.
+    // Each cycle of the permutation in one go: the event carried is put in its place and the
+    // one there taken up, until the cycle closes (a load and a store per event, where
+    // swapping into place moved each event and its place twice).
     for i in 0..n {
-        loop {
-            let j = usize::from(pos[i]);
-            if j == i || j >= n {
-                break;
-            }
-            events.swap(i, j);
-            pos.swap(i, j);
+        let mut j = usize::from(pos[i]);
+        if j == i {
+            continue;
         }
+        let mut carried = events[i];
+        pos[i] = i as u16;
+        while j != i {
+            let (Some(slot), Some(p)) = (events.get_mut(j), pos.get_mut(j)) else { break };
+            carried = core::mem::replace(slot, carried);
+            j = usize::from(core::mem::replace(p, j as u16));
+        }
+        events[i] = carried;
     }
     true
 }
@@ -534,6 +540,48 @@ fn fill(cells: &mut [u16], from: usize, to: usize, v: u16) {
     }
 }
 
+/// Labels the events of `row` with their own index, marked [`CORE`] for core points: the
+/// events within reach of each pixel, over the rows `near` (nearest first, until `min_pts`),
+/// are two lookups in the tables a row. Returns the core points and the lookups made.
+// Kept out of line: inside the sweep the loop shared the registers of the linking below and
+// reloaded its values on every lookup.
+#[inline(never)]
+fn count_row(
+    labels: &mut [u16],
+    events: &[WindowEvent],
+    t: &Tables,
+    row: Row,
+    near: &[Near],
+    min_x: u16,
+    min_pts: usize,
+) -> (u16, u32) {
+    let (mut cores, mut queries) = (0u16, 0u32);
+    let (start, end) = (usize::from(row.start), usize::from(row.end));
+    let (Some(events), Some(labels)) = (events.get(start..end), labels.get_mut(start..end)) else {
+        return (0, 0);
+    };
+    // Events of one pixel share their neighbourhood.
+    let (mut last_x, mut core) = (usize::MAX, false);
+    for (k, (e, l)) in events.iter().zip(labels.iter_mut()).enumerate() {
+        let x = usize::from(e.x.wrapping_sub(min_x));
+        if x != last_x {
+            last_x = x;
+            let mut count = 0;
+            for nr in near {
+                queries = queries.wrapping_add(1);
+                count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
+                if count >= min_pts {
+                    break;
+                }
+            }
+            core = count >= min_pts;
+        }
+        cores += u16::from(core);
+        *l = (start + k) as u16 | if core { CORE } else { 0 };
+    }
+    (cores, queries)
+}
+
 /// For each event of `from` (in column order), the span of events of `to` within `s` columns
 /// of it: `(index in from, lo, hi)`. Both rows are sorted by column, so the span slides.
 fn spans(events: &[WindowEvent], from: Row, to: Row, s: u16) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
@@ -657,9 +705,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 None => self.by_rows(events, &m, min_pts, &mut stats, &mut work),
             }
         }
-        for l in &mut self.labels[..n] {
-            *l &= MASK;
-        }
+        // Every sweep ends in `settle_borders`, which leaves no `CORE` mark behind.
         stats.distance_checks = work;
         stats
     }
@@ -717,25 +763,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             while let Some(c) = events.get(counted).filter(|c| u32::from(c.y) <= y + reach as u32) {
                 t.build_to(events, u32::from(c.y) + reach as u32);
                 let (row, len, _) = t.around(c.y, nearest, &mut near);
-                // Events of one pixel share their neighbourhood.
-                let (mut last_x, mut core) = (usize::MAX, false);
-                for k in usize::from(row.start)..usize::from(row.end) {
-                    let x = usize::from(events[k].x.wrapping_sub(min_x));
-                    if x != last_x {
-                        last_x = x;
-                        let mut count = 0;
-                        for nr in &near[..len] {
-                            queries = queries.wrapping_add(1);
-                            count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
-                            if count >= min_pts {
-                                break;
-                            }
-                        }
-                        core = count >= min_pts;
-                    }
-                    core_points += u16::from(core);
-                    self.labels[k] = k as u16 | if core { CORE } else { 0 };
-                }
+                let (cores, lookups) = count_row(&mut self.labels, events, &t, row, &near[..len], min_x, min_pts);
+                core_points = core_points.wrapping_add(cores);
+                queries = queries.wrapping_add(lookups);
                 counted = usize::from(row.end).max(counted + 1);
             }
 
@@ -746,61 +776,82 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             //    reach). A border point takes the first core point of the first span, from
             //    the top down, that holds one.
             let (row, len, above) = t.around(e.y, top_down, &mut near);
-            let near = &near[..len];
-            let mut prev: Option<(usize, u16)> = None;
-            for k in usize::from(row.start)..usize::from(row.end) {
-                let ex = events[k].x;
-                let x = usize::from(ex.wrapping_sub(min_x));
-                if self.labels[k] & CORE != 0 {
-                    let chained = prev.filter(|&(_, px)| ex - px <= s0);
-                    prev = Some((k, ex));
-                    if let Some((p, px)) = chained {
-                        self.union(p, k);
-                        // The core points of the spans of the previous core point are in its
-                        // set already; those of this span beyond are within the same-row
-                        // reach of each other, so joined by their row's chain.
-                        let px = usize::from(px.wrapping_sub(min_x));
-                        for nr in &near[..above] {
-                            let (lo, hi) = ((nr.lo + x).max(nr.hi + px), nr.hi + x);
-                            if lo < hi {
-                                queries = queries.wrapping_add(1);
-                                if let Some(j) = self.first_core(t.at(lo), t.at(hi)) {
-                                    self.union(j, k);
-                                }
-                            }
-                        }
-                        continue;
-                    }
-                    for nr in &near[..above] {
-                        queries = queries.wrapping_add(1);
-                        let hi = t.at(nr.hi + x);
-                        let Some(j) = self.first_core(t.at(nr.lo + x), hi) else { continue };
-                        self.union(j, k);
-                        let mid = t.at(nr.mid + x);
-                        if j < mid {
-                            if let Some(j) = self.first_core(mid, hi) {
-                                self.union(j, k);
-                            }
-                        }
-                    }
-                } else {
-                    let mut best = NONE;
-                    for nr in near {
-                        queries = queries.wrapping_add(1);
-                        if let Some(j) = self.first_core(t.at(nr.lo + x), t.at(nr.hi + x)) {
-                            best = j as u16;
-                            break;
-                        }
-                    }
-                    self.labels[k] = best;
-                }
-            }
+            queries = queries.wrapping_add(self.link_row(events, &t, row, &near[..len], above, min_x, s0));
             linked = usize::from(row.end).max(linked + 1);
         }
         stats.core = core_points;
         self.number(n, stats);
         self.settle_borders(n, stats);
         Some(queries)
+    }
+
+    /// Links the core points of `row` (core points marked by [`count_row`]) to the core
+    /// points before them within reach, and gives its border points their first core
+    /// neighbour, from the rows `near` (from the top down; the first `above` of them above
+    /// `row`). Returns the lookups made.
+    // Kept out of line, as `count_row` is.
+    #[inline(never)]
+    #[allow(clippy::too_many_arguments)]
+    fn link_row(
+        &mut self,
+        events: &[WindowEvent],
+        t: &Tables,
+        row: Row,
+        near: &[Near],
+        above: usize,
+        min_x: u16,
+        s0: u16,
+    ) -> u32 {
+        let mut queries = 0u32;
+        let mut prev: Option<(usize, u16)> = None;
+        for k in usize::from(row.start)..usize::from(row.end) {
+            let ex = events[k].x;
+            let x = usize::from(ex.wrapping_sub(min_x));
+            if self.labels[k] & CORE != 0 {
+                let chained = prev.filter(|&(_, px)| ex - px <= s0);
+                prev = Some((k, ex));
+                if let Some((p, px)) = chained {
+                    self.union(p, k);
+                    // The core points of the spans of the previous core point are in its
+                    // set already; those of this span beyond are within the same-row
+                    // reach of each other, so joined by their row's chain.
+                    let px = usize::from(px.wrapping_sub(min_x));
+                    for nr in &near[..above] {
+                        let (lo, hi) = ((nr.lo + x).max(nr.hi + px), nr.hi + x);
+                        if lo < hi {
+                            queries = queries.wrapping_add(1);
+                            if let Some(j) = self.first_core(t.at(lo), t.at(hi)) {
+                                self.union(j, k);
+                            }
+                        }
+                    }
+                    continue;
+                }
+                for nr in &near[..above] {
+                    queries = queries.wrapping_add(1);
+                    let hi = t.at(nr.hi + x);
+                    let Some(j) = self.first_core(t.at(nr.lo + x), hi) else { continue };
+                    self.union(j, k);
+                    let mid = t.at(nr.mid + x);
+                    if j < mid {
+                        if let Some(j) = self.first_core(mid, hi) {
+                            self.union(j, k);
+                        }
+                    }
+                }
+            } else {
+                let mut best = NONE;
+                for nr in near {
+                    queries = queries.wrapping_add(1);
+                    if let Some(j) = self.first_core(t.at(nr.lo + x), t.at(nr.hi + x)) {
+                        best = j as u16;
+                        break;
+                    }
+                }
+                self.labels[k] = best;
+            }
+        }
+        queries
     }
 
     /// The first core point of `events[lo..hi]`.
@@ -1019,12 +1070,14 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     }
 
     /// Turns each border point's best core neighbour (an index, or [`NONE`]) into that core
-    /// point's cluster, or noise.
+    /// point's cluster, or noise, and each core point's label into its cluster (unmarked).
     #[inline(never)]
     fn settle_borders(&mut self, n: usize, stats: &mut ClusterStats) {
         for i in 0..n {
             let l = self.labels[i];
             if l & CORE != 0 {
+                // Border points after this one read its cluster below, marked or not.
+                self.labels[i] = l & MASK;
                 continue;
             }
             self.labels[i] = match self.labels.get(usize::from(l)).filter(|_| l != NONE) {
@@ -1153,7 +1206,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         }
     }
 
-    #[inline]
+    // Inlined: a call per link cost more than the link itself (most links join points
+    // already in one set).
+    #[inline(always)]
     fn union(&mut self, a: usize, b: usize) {
         let (la, lb) = (self.labels[a] & MASK, self.labels[b] & MASK);
         // Most links join points already in one set, often through the same parent.

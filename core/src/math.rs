@@ -25,6 +25,17 @@ pub(crate) fn sqrt(x: f32) -> f32 {
     }
 }
 
+/// `x.max(y)` as libm's `fmaxf` takes it (`y` when `x` is NaN or below it, else `x`), inline:
+/// the M4F has no instruction for it, and `f32::max` was a call into libm every time.
+#[inline(always)]
+pub(crate) fn max(x: f32, y: f32) -> f32 {
+    if x.is_nan() || x < y {
+        y
+    } else {
+        x
+    }
+}
+
 /// `exp(−z)` for `0 ≤ z ≤ 26`, to about 4e-6 relative: `2^(−m)`, `m = z·log₂e`, split into an
 /// integer power (built in the exponent bits) and a polynomial for the fraction. A tenth of
 /// libm's `expf` on the M4F.
