@@ -16,20 +16,13 @@
 use evcal_host::{
     grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Setup},
-    sim::{Light, SimConfig, Trajectory},
+    sim::SimConfig,
 };
-use evcal_tests::recorded::Recorded;
+use evcal_tests::{args, recorded::Recorded};
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let cache = match args.iter().position(|a| a == "--cache") {
-        Some(i) if i + 1 < args.len() => {
-            let dir = args.remove(i + 1);
-            args.remove(i);
-            Some(std::path::PathBuf::from(dir))
-        }
-        _ => None,
-    };
+    let cache = args::take_cache(&mut args);
     let windowed = args.first().is_some_and(|a| a == "--windowed");
     if windowed {
         args.remove(0);
@@ -38,12 +31,7 @@ fn main() {
         eprintln!("usage: calibration_seeds [--cache DIR] [--windowed] SENSOR PATTERN cone|square|spiral good|low SECONDS SEED...");
         std::process::exit(2);
     }
-    let trajectory = match args[2].as_str() {
-        "spiral" => Trajectory::Spiral,
-        "square" => Trajectory::Square,
-        _ => Trajectory::Cone,
-    };
-    let light = if args[3] == "low" { Light::Low } else { Light::Good };
+    let (trajectory, light) = (args::trajectory(&args[2]), args::light(&args[3]));
     let Ok(seconds) = args[4].parse::<f64>() else {
         eprintln!("SECONDS: not a number: {}", args[4]);
         std::process::exit(2);

@@ -12,32 +12,23 @@ use evcal_host::{
     detections::WindowRecord,
     grid::{find_grid, Pattern},
     pipeline::Setup,
-    sim::{Light, SimConfig, Trajectory},
+    sim::SimConfig,
     track::{follow_explained, Unfollowed},
 };
-use evcal_tests::recorded::{Recorded, TrueCentre};
+use evcal_tests::{
+    args,
+    recorded::{Recorded, TrueCentre},
+};
 use std::collections::BTreeMap;
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let cache = match args.iter().position(|a| a == "--cache") {
-        Some(i) if i + 1 < args.len() => {
-            let dir = args.remove(i + 1);
-            args.remove(i);
-            Some(std::path::PathBuf::from(dir))
-        }
-        _ => None,
-    };
+    let cache = args::take_cache(&mut args);
     if args.len() != 6 {
         eprintln!("usage: grid_misses [--cache DIR] SENSOR PATTERN cone|square|spiral good|low SECONDS SEED");
         std::process::exit(2);
     }
-    let trajectory = match args[2].as_str() {
-        "spiral" => Trajectory::Spiral,
-        "square" => Trajectory::Square,
-        _ => Trajectory::Cone,
-    };
-    let light = if args[3] == "low" { Light::Low } else { Light::Good };
+    let (trajectory, light) = (args::trajectory(&args[2]), args::light(&args[3]));
     let (Ok(seconds), Ok(seed)) = (args[4].parse::<f64>(), args[5].parse::<u64>()) else {
         eprintln!("SECONDS and SEED must be numbers");
         std::process::exit(2);

@@ -1,5 +1,6 @@
 //! Shared helpers of the end-to-end tests (in `tests/`).
 
+pub mod args;
 pub mod faery;
 pub mod firmware;
 pub mod link;

@@ -1,0 +1,50 @@
+//! Command-line pieces the examples share: `--cache DIR` and the simulator's preset names.
+
+use evcal_host::sim::{Light, Trajectory};
+use std::path::PathBuf;
+
+/// Removes `--cache DIR` from `args` wherever it is and returns the directory.
+pub fn take_cache(args: &mut Vec<String>) -> Option<PathBuf> {
+    let i = args.iter().position(|a| a == "--cache")?;
+    if i + 1 >= args.len() {
+        return None;
+    }
+    let dir = args.remove(i + 1);
+    args.remove(i);
+    Some(PathBuf::from(dir))
+}
+
+/// The trajectory a preset name stands for (anything else: the cone).
+pub fn trajectory(name: &str) -> Trajectory {
+    match name {
+        "spiral" => Trajectory::Spiral,
+        "square" => Trajectory::Square,
+        _ => Trajectory::Cone,
+    }
+}
+
+/// The light a preset name stands for (anything but `low`: good).
+pub fn light(name: &str) -> Light {
+    if name == "low" {
+        Light::Low
+    } else {
+        Light::Good
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    #[test]
+    fn cache_is_taken_from_anywhere_and_a_bare_flag_is_left() {
+        let mut a: Vec<String> = ["x", "--cache", "d", "y"].map(String::from).to_vec();
+        assert_eq!(take_cache(&mut a), Some(PathBuf::from("d")));
+        assert_eq!(a, ["x", "y"]);
+        let mut b: Vec<String> = ["x", "--cache"].map(String::from).to_vec();
+        assert_eq!(take_cache(&mut b), None);
+        assert_eq!(b, ["x", "--cache"]);
+        assert_eq!(trajectory("square"), Trajectory::Square);
+        assert_eq!(light("low"), Light::Low);
+    }
+}
