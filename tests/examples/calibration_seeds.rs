@@ -13,11 +13,7 @@
 //! was found (the issue's ≥ 95 %), and how many labelled views hold a point whose nearest
 //! true circle is another (wrong orderings; must be 0).
 
-use evcal_host::{
-    grid::Pattern,
-    pipeline::{calibrate_views, views_from_windows, Setup},
-    sim::SimConfig,
-};
+use evcal_host::pipeline::{calibrate_views, views_from_windows, Setup};
 use evcal_tests::{args, recorded::Recorded};
 
 fn main() {
@@ -42,12 +38,8 @@ fn main() {
             eprintln!("SEED: not a number: {seed}");
             std::process::exit(2);
         };
-        let Some(cfg) = SimConfig::preset(&args[0], &args[1], trajectory, light, seed) else {
-            eprintln!("unknown sensor or pattern: {} {}", args[0], args[1]);
-            std::process::exit(2);
-        };
+        let (cfg, pattern) = args::preset_or_exit(&args[0], &args[1], trajectory, light, seed);
         let cam = cfg.camera;
-        let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).expect("preset pattern");
         let file = cache.as_ref().map(|d| {
             let name = format!(
                 "{}_{}_{}_{}_{}_{seed}{}.json",

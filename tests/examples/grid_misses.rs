@@ -12,7 +12,6 @@ use evcal_host::{
     detections::WindowRecord,
     grid::{find_grid, Pattern},
     pipeline::Setup,
-    sim::SimConfig,
     track::{follow_explained, Unfollowed},
 };
 use evcal_tests::{
@@ -33,12 +32,8 @@ fn main() {
         eprintln!("SECONDS and SEED must be numbers");
         std::process::exit(2);
     };
-    let Some(cfg) = SimConfig::preset(&args[0], &args[1], trajectory, light, seed) else {
-        eprintln!("unknown sensor or pattern: {} {}", args[0], args[1]);
-        std::process::exit(2);
-    };
+    let (cfg, pattern) = args::preset_or_exit(&args[0], &args[1], trajectory, light, seed);
     let cam = cfg.camera;
-    let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).expect("preset pattern");
     let file = cache.map(|d| d.join(format!("{}.json", args.join("_"))));
     let rec = Recorded::simulate(cfg, seconds, false, file.as_deref());
     let (windows, truths) = (&rec.windows, &rec.truth);

@@ -1,6 +1,9 @@
 //! Command-line pieces the examples share: `--cache DIR` and the simulator's preset names.
 
-use evcal_host::sim::{Light, Trajectory};
+use evcal_host::{
+    grid::Pattern,
+    sim::{Light, SimConfig, Trajectory},
+};
 use std::path::PathBuf;
 
 /// Removes `--cache DIR` from `args` wherever it is and returns the directory.
@@ -30,6 +33,23 @@ pub fn light(name: &str) -> Light {
     } else {
         Light::Good
     }
+}
+
+/// The simulator preset `sensor` `pattern` and its grid, or a message and exit status 2 for
+/// names no preset has.
+pub fn preset_or_exit(
+    sensor: &str,
+    pattern: &str,
+    trajectory: Trajectory,
+    light: Light,
+    seed: u64,
+) -> (SimConfig, Pattern) {
+    let Some(cfg) = SimConfig::preset(sensor, pattern, trajectory, light, seed) else {
+        eprintln!("unknown sensor or pattern: {sensor} {pattern}");
+        std::process::exit(2);
+    };
+    let grid = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).expect("preset pattern");
+    (cfg, grid)
 }
 
 #[cfg(test)]
