@@ -1,5 +1,6 @@
-//! End to end: simulated recordings (continuous event simulation, clutter, noise) through the
-//! detection core, the grid finder and the solver, against the simulator's truth.
+//! End to end: simulated recordings (event simulation with clutter and noise, of the
+//! milliseconds each window needs) through the detection core, the grid finder and the
+//! solver, against the simulator's truth.
 //!
 //! Checked strictly: the grid finder never pairs a point with the wrong board point (zero
 //! wrong orderings, against the truth of every window, windows followed from their
@@ -10,12 +11,16 @@
 //! fire late inside a blurred edge, so the centres trail their circles along the motion by
 //! about a tenth of a pixel: the pipeline measures that shift from the views and takes it
 //! out before the final solve, and the test checks the measurement against the trailing
-//! measured from the truth. Not every target is met: fx reads 0.12–0.16 % long with this
-//! seed, among the worst of seven (`examples/calibration_seeds.rs` runs the cone case over seeds);
-//! what remains is tied to the centres' offset across their motion (a constant 0.03 px there
-//! moves fx by 0.1 %), not yet explained. With the true centres in the same views the solve
-//! is exact. In low light a 4000-event window often holds too few events of part of the
-//! grid for the finder to label it; the windows around it label the part that was seen
+//! measured from the truth. The recordings last 12 s ([`RECORDING_S`]): a calibration needs
+//! views that span the motion's tilts, and on the 4 s these cases once used fx read 0.11–0.16 %
+//! long from a pose set covering half the cone's tilt cycle. The cone cases meet the 0.1 %
+//! and are held to it. The spiral cases do not: fx reads +0.08 to +0.13 % long over seven
+//! seeds (`examples/calibration_seeds.rs`), a bias tied to the centres' offset across their
+//! motion (calibrating on the true centres moved by only that part of their error gives it
+//! all), not yet explained. With the true centres in the same views the solve is exact.
+//!
+//! In low light a 4000-event window often holds too few events of part of the grid for the
+//! finder to label it; the windows around it label the part that was seen
 //! (`evcal_host::track`), which counts as found but is not solved on. The figures are in
 //! the closing note.
 
@@ -28,6 +33,23 @@ use evcal_host::{
     pipeline::{calibrate_views, views_from_windows, Setup},
     sim::{FrameTruth, Light, SimConfig, Trajectory},
 };
+
+/// Length of the simulated recordings, seconds: 360 windows at the paper's 30 per second.
+/// The cone's tilt runs through its 15–35° in 7.3 s and its roll in 9 s; a 4 s recording saw
+/// half a tilt cycle, and on it fx read 0.11 % long with a standard deviation of 0.03 %
+/// (seed 5), where 12 s give +0.016 % (seven seeds: +0.038 % mean, none beyond 0.064 %).
+/// Windowed simulation (`eval::simulate_windows`) keeps it cheap, and
+/// `windowed_simulation_calibrates_as_continuous_does` checks that it calibrates as a
+/// continuous one does.
+const RECORDING_S: f64 = 12.0;
+/// The target for fx and fy, percent.
+const TARGET_FOCAL_PCT: f64 = 0.1;
+/// The spiral cases miss the target: fx reads +0.08 to +0.13 % long over seeds (see the
+/// module's comment); guarded at what they reach with a margin.
+const SPIRAL_FOCAL_PCT: f64 = 0.2;
+/// The 3 s recordings of the windowed-against-continuous comparison are too short for the
+/// target (a third of the cone's tilt cycle); only gross errors are guarded there.
+const SHORT_FOCAL_PCT: f64 = 0.5;
 
 struct Case {
     sensor: &'static str,
@@ -187,12 +209,18 @@ fn run(case: &Case) -> Figures {
     f
 }
 
-/// Guards: zero wrong orderings, RMS within the target in good light, and the rest within a
-/// margin of what is reached today.
-fn guard(f: &Figures, low_light: bool) {
+/// Guards: zero wrong orderings, RMS within the target in good light, fx and fy within
+/// `focal_pct` (the 0.1 % where it is met), and the rest within a margin of what is
+/// reached today.
+fn guard(f: &Figures, low_light: bool, focal_pct: f64) {
     assert_eq!(f.wrong_orderings, 0, "a grid was labelled wrongly");
     assert!(f.views >= 20, "only {} views", f.views);
-    assert!(f.fx_pct.abs() < 0.5 && f.fy_pct.abs() < 0.5, "fx {:+.3} %, fy {:+.3} %", f.fx_pct, f.fy_pct);
+    assert!(
+        f.fx_pct.abs() < focal_pct && f.fy_pct.abs() < focal_pct,
+        "fx {:+.3} %, fy {:+.3} % (limit {focal_pct} %)",
+        f.fx_pct,
+        f.fy_pct
+    );
     assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
     // Good light: the 0.13 px.
     assert!(f.rms_px < if low_light { 0.16 } else { 0.13 }, "RMS {:.3} px", f.rms_px);
@@ -214,11 +242,11 @@ fn davis346_4x11_cone_good_light() {
         pattern: "4x11",
         trajectory: Trajectory::Cone,
         light: Light::Good,
-        seconds: 4.0,
+        seconds: RECORDING_S,
         seed: 5,
-        windowed: false,
+        windowed: true,
     });
-    guard(&f, false);
+    guard(&f, false, TARGET_FOCAL_PCT);
 }
 
 #[test]
@@ -228,11 +256,11 @@ fn davis346_4x11_cone_low_light() {
         pattern: "4x11",
         trajectory: Trajectory::Cone,
         light: Light::Low,
-        seconds: 4.0,
+        seconds: RECORDING_S,
         seed: 5,
-        windowed: false,
+        windowed: true,
     });
-    guard(&f, true);
+    guard(&f, true, TARGET_FOCAL_PCT);
 }
 
 #[test]
@@ -242,11 +270,11 @@ fn dvxplorer_3x9_spiral_good_light() {
         pattern: "3x9",
         trajectory: Trajectory::Spiral,
         light: Light::Good,
-        seconds: 3.0,
+        seconds: RECORDING_S,
         seed: 5,
-        windowed: false,
+        windowed: true,
     });
-    guard(&f, false);
+    guard(&f, false, SPIRAL_FOCAL_PCT);
 }
 
 #[test]
@@ -256,11 +284,11 @@ fn davis346_3x9_spiral_good_light() {
         pattern: "3x9",
         trajectory: Trajectory::Spiral,
         light: Light::Good,
-        seconds: 4.0,
+        seconds: RECORDING_S,
         seed: 5,
-        windowed: false,
+        windowed: true,
     });
-    guard(&f, false);
+    guard(&f, false, SPIRAL_FOCAL_PCT);
 }
 
 /// `evcal demo` simulates only the milliseconds each window needs, jumping between window
@@ -282,8 +310,8 @@ fn windowed_simulation_calibrates_as_continuous_does() {
         windowed,
     };
     let (c, w) = (run(&case(false)), run(&case(true)));
-    guard(&c, false);
-    guard(&w, false);
+    guard(&c, false, SHORT_FOCAL_PCT);
+    guard(&w, false, SHORT_FOCAL_PCT);
     assert!(
         (w.shift_true - c.shift_true).abs() < 0.03,
         "centres trail their circles by {:.3} px after jumps, {:.3} px in a continuous run",

@@ -22,8 +22,9 @@ use std::{
 #[derive(Args)]
 pub struct DemoArgs {
     /// Seconds of motion (a 4000-event window every 33 ms: 30 windows a second; only the
-    /// milliseconds each window needs are simulated).
-    #[arg(long, default_value_t = 3.0)]
+    /// milliseconds each window needs are simulated). 8 s take the cone through its whole
+    /// range of tilts (15–35°, a 7.3 s cycle): with 3 s, half of it, fx read 0.13 % long.
+    #[arg(long, default_value_t = 8.0)]
     pub seconds: f64,
     /// Lighting.
     #[arg(long, value_enum, default_value_t = Light::Good)]
