@@ -42,6 +42,14 @@ use evcal_host::{
 /// `windowed_simulation_calibrates_as_continuous_does` checks that it calibrates as a
 /// continuous one does.
 const RECORDING_S: f64 = 12.0;
+/// The target for the reprojection RMS in good light (the paper's figure), px.
+const TARGET_RMS_PX: f64 = 0.13;
+/// Low light is not held to the good-light target; guarded at what it reaches (0.108 px).
+const LOW_LIGHT_RMS_PX: f64 = 0.16;
+/// The DVXplorer sweeping a 4x11 grid on the cone misses the 0.13 px: 0.141–0.154 px over
+/// seeds 1–7, not yet explained (the same sensor's 3x9 spiral reaches 0.109 px, the
+/// DAVIS346's 4x11 cone 0.087 px); guarded at what it reaches with a margin.
+const DVXPLORER_CONE_RMS_PX: f64 = 0.17;
 /// The target for fx and fy, percent.
 const TARGET_FOCAL_PCT: f64 = 0.1;
 /// The spiral cases miss the target: fx reads +0.08 to +0.13 % long over seeds (see the
@@ -209,10 +217,10 @@ fn run(case: &Case) -> Figures {
     f
 }
 
-/// Guards: zero wrong orderings, RMS within the target in good light, fx and fy within
-/// `focal_pct` (the 0.1 % where it is met), and the rest within a margin of what is
+/// Guards: zero wrong orderings, RMS within `rms_px` and fx and fy within `focal_pct` (the
+/// issue's 0.13 px and 0.1 % where they are met), and the rest within a margin of what is
 /// reached today.
-fn guard(f: &Figures, low_light: bool, focal_pct: f64) {
+fn guard(f: &Figures, rms_px: f64, focal_pct: f64) {
     assert_eq!(f.wrong_orderings, 0, "a grid was labelled wrongly");
     assert!(f.views >= 20, "only {} views", f.views);
     assert!(
@@ -222,8 +230,7 @@ fn guard(f: &Figures, low_light: bool, focal_pct: f64) {
         f.fy_pct
     );
     assert!(f.cx_px.abs() < 2.0 && f.cy_px.abs() < 2.0, "cx {:+.2}, cy {:+.2} px", f.cx_px, f.cy_px);
-    // Good light: the 0.13 px.
-    assert!(f.rms_px < if low_light { 0.16 } else { 0.13 }, "RMS {:.3} px", f.rms_px);
+    assert!(f.rms_px < rms_px, "RMS {:.3} px (limit {rms_px} px)", f.rms_px);
     // Low light too since parts of the grid are followed (83.8 % before, 96.4 % after).
     let found = 0.92;
     assert!(f.found_in_view > found, "grid found in {:.1} % of in-view windows", 100.0 * f.found_in_view);
@@ -246,7 +253,7 @@ fn davis346_4x11_cone_good_light() {
         seed: 5,
         windowed: true,
     });
-    guard(&f, false, TARGET_FOCAL_PCT);
+    guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
 }
 
 #[test]
@@ -260,7 +267,21 @@ fn davis346_4x11_cone_low_light() {
         seed: 5,
         windowed: true,
     });
-    guard(&f, true, TARGET_FOCAL_PCT);
+    guard(&f, LOW_LIGHT_RMS_PX, TARGET_FOCAL_PCT);
+}
+
+#[test]
+fn dvxplorer_4x11_cone_good_light() {
+    let f = run(&Case {
+        sensor: "dvxplorer",
+        pattern: "4x11",
+        trajectory: Trajectory::Cone,
+        light: Light::Good,
+        seconds: RECORDING_S,
+        seed: 5,
+        windowed: true,
+    });
+    guard(&f, DVXPLORER_CONE_RMS_PX, TARGET_FOCAL_PCT);
 }
 
 #[test]
@@ -274,7 +295,7 @@ fn dvxplorer_3x9_spiral_good_light() {
         seed: 5,
         windowed: true,
     });
-    guard(&f, false, SPIRAL_FOCAL_PCT);
+    guard(&f, TARGET_RMS_PX, SPIRAL_FOCAL_PCT);
 }
 
 #[test]
@@ -288,7 +309,7 @@ fn davis346_3x9_spiral_good_light() {
         seed: 5,
         windowed: true,
     });
-    guard(&f, false, SPIRAL_FOCAL_PCT);
+    guard(&f, TARGET_RMS_PX, SPIRAL_FOCAL_PCT);
 }
 
 /// `evcal demo` simulates only the milliseconds each window needs, jumping between window
@@ -310,8 +331,8 @@ fn windowed_simulation_calibrates_as_continuous_does() {
         windowed,
     };
     let (c, w) = (run(&case(false)), run(&case(true)));
-    guard(&c, false, SHORT_FOCAL_PCT);
-    guard(&w, false, SHORT_FOCAL_PCT);
+    guard(&c, TARGET_RMS_PX, SHORT_FOCAL_PCT);
+    guard(&w, TARGET_RMS_PX, SHORT_FOCAL_PCT);
     assert!(
         (w.shift_true - c.shift_true).abs() < 0.03,
         "centres trail their circles by {:.3} px after jumps, {:.3} px in a continuous run",
