@@ -1119,43 +1119,49 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             self.ranges[c] = ClusterRange { start: at, end: at };
             at += sizes[c];
         }
-        let clustered = usize::from(at);
-        // The fill pointer of each region, `tail` that of the rest; `labels[..n]` and
-        // `events` are as long, so the swaps below stay inside.
+        // The fill pointer of each region; the rest (noise and dropped events, labels beyond
+        // the clusters) fills from `at` on, in whatever order its events are left in.
         let labels = &mut self.labels[..n];
         let ranges = &mut self.ranges[..k];
-        let mut tail = clustered;
-        for r in 0..=k {
-            let end = ranges.get(r).map_or(n, |g| usize::from(g.start + sizes[r]));
-            loop {
-                let fill = ranges.get(r).map_or(tail, |g| usize::from(g.end));
-                if fill >= end {
-                    break;
-                }
-                let l = usize::from(labels[fill]);
-                let dest = match ranges.get_mut(l) {
-                    Some(g) => &mut g.end,
-                    None => {
-                        // Noise and dropped events (labels beyond the clusters) go last.
-                        if r == k {
-                            tail += 1;
-                            continue;
-                        }
-                        let d = tail;
-                        tail += 1;
-                        events.swap(fill, d);
-                        labels.swap(fill, d);
-                        continue;
-                    }
-                };
-                let d = usize::from(*dest);
-                *dest += 1;
+        let mut tail = usize::from(at);
+        for r in 0..k {
+            let end = usize::from(ranges[r].start + sizes[r]);
+            let mut fill = usize::from(ranges[r].end);
+            while fill < end {
+                let mut l = usize::from(labels[fill]);
                 if l != r {
-                    // Each swap puts one event in its final region, so this ends.
-                    events.swap(fill, d);
-                    labels.swap(fill, d);
+                    // The event at `fill` goes to its region's fill pointer and the one there
+                    // is carried on, until one of region `r` comes up: the swaps of events
+                    // into place one at a time, with the carried event kept out of memory
+                    // in between (each event moved once, not twice).
+                    let (mut carried, mut carried_label) = (events[fill], labels[fill]);
+                    loop {
+                        let d = match ranges.get_mut(l) {
+                            Some(g) => {
+                                g.end += 1;
+                                usize::from(g.end - 1)
+                            }
+                            None => {
+                                tail += 1;
+                                tail - 1
+                            }
+                        };
+                        // Each move puts one event in its final region, so this ends; `d` is
+                        // below `n` (every region's pointer stays within it).
+                        let (Some(slot), Some(slot_label)) = (events.get_mut(d), labels.get_mut(d)) else { break };
+                        carried = core::mem::replace(slot, carried);
+                        carried_label = core::mem::replace(slot_label, carried_label);
+                        l = usize::from(carried_label);
+                        if l == r {
+                            break;
+                        }
+                    }
+                    events[fill] = carried;
+                    labels[fill] = carried_label;
                 }
+                fill += 1;
             }
+            ranges[r].end = end as u16;
         }
         &self.ranges[..k]
     }
