@@ -302,7 +302,7 @@ fn join_crescents<const N: usize, const C: usize>(
 ) -> u16 {
     let mut boxes: heapless::Vec<[u16; 4], C> = heapless::Vec::new();
     let mut sums: heapless::Vec<Moments, C> = heapless::Vec::new();
-    let mut parts: heapless::Vec<Extent, C> = heapless::Vec::new();
+    extents.clear();
     for r in clusterer.group(events) {
         let part = slice(events, r);
         let mut x = Extent::EMPTY;
@@ -310,7 +310,7 @@ fn join_crescents<const N: usize, const C: usize>(
         let m = Moments::of(part, t_ref);
         let _ = boxes.push([x.x_lo, x.y_lo, x.x_hi, x.y_hi]);
         let _ = sums.push(m);
-        let _ = parts.push(x);
+        let _ = extents.push(x);
     }
     let k = boxes.len();
     // Union-find over clusters, each root the lowest index of its set.
@@ -320,24 +320,29 @@ fn join_crescents<const N: usize, const C: usize>(
     }
     let merged = join_pairs(&boxes, &sums, &mut into);
     // The joined clusters' sums, in the order `merge` numbers them (by their lowest member).
+    // The extents are joined in place: a set's slot is at most its lowest member's index,
+    // and every member comes after it, so no extent is overwritten before it is read.
     let mut joined: heapless::Vec<Moments, C> = heapless::Vec::new();
-    extents.clear();
     let mut slot = [0u16; C];
     for c in 0..k {
         let r = root(&into, c);
+        let own = extents.get(c).copied().unwrap_or(Extent::EMPTY);
         if r == c {
             slot[c] = joined.len() as u16;
+            if let Some(x) = extents.get_mut(joined.len()) {
+                *x = own;
+            }
             let _ = joined.push(sums[c]);
-            let _ = extents.push(parts[c]);
         } else {
             if let Some(m) = joined.get_mut(usize::from(slot[r])) {
                 m.add(&sums[c]);
             }
             if let Some(x) = extents.get_mut(usize::from(slot[r])) {
-                x.join(&parts[c]);
+                x.join(&own);
             }
         }
     }
+    extents.truncate(joined.len());
     starts.clear();
     for m in &joined {
         let _ = starts.push(m.circle());
