@@ -222,48 +222,59 @@ const SORT_BUCKETS: usize = 1024;
 /// Sorts events that are in time order into [`pixel_order`], as [`sort_by_pixel`] does but
 /// in fewer steps: a stable counting sort by column, then by row, so that the events of a
 /// pixel stay in time order. `order` and `pos` (at least one entry per event) are scratch.
-/// `bounds` are the events' least and greatest column and row. Returns `false`, having done
-/// nothing, when the columns or rows span more than [`SORT_BUCKETS`] or the scratch is short.
+/// Returns the events' least and greatest column and row (`[min_x, max_x, min_y, max_y]`),
+/// which its counting finds on the way, and their latest time, or `None`, having done nothing, when the events are
+/// fewer than two or not in time order, a column or row is beyond [`SORT_BUCKETS`], or the
+/// scratch is short.
 // Kept out of line: inlined, it costs its caller's loops more than the call (measured on
 // the Cortex-M4F).
 #[inline(never)]
-fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mut [u16], bounds: [u16; 4]) -> bool {
+fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mut [u16]) -> Option<([u16; 4], u32)> {
     let n = events.len();
-    let [min_x, max_x, min_y, max_y] = bounds;
-    let (w, h) = (usize::from(max_x.wrapping_sub(min_x)) + 1, usize::from(max_y.wrapping_sub(min_y)) + 1);
-    if n < 2 {
-        return true;
+    if n < 2 || n > usize::from(u16::MAX) {
+        return None;
     }
-    let (Some(order), Some(pos)) = (order.get_mut(..n), pos.get_mut(..n)) else { return false };
-    if w > SORT_BUCKETS || h > SORT_BUCKETS || n > usize::from(u16::MAX) {
-        return false;
-    }
-    // `order` lists the events by column, in time within one. The events of each column
-    // and of each row are counted in one pass.
+    let (order, pos) = (order.get_mut(..n)?, pos.get_mut(..n)?);
+    // The events of each column and of each row are counted in one pass (column `x` in
+    // bucket `x + 1`), which also checks the time order: the bounds then follow from the
+    // counts, without a pass of their own.
     let mut next = [0u16; SORT_BUCKETS + 1];
     let mut by_row = [0u16; SORT_BUCKETS + 1];
+    let (mut in_time, mut latest) = (true, 0u32);
     for e in events.iter() {
-        let b = usize::from(e.x - min_x) + 1;
-        next[b] = next[b].wrapping_add(1);
-        let b = usize::from(e.y - min_y) + 1;
-        by_row[b] = by_row[b].wrapping_add(1);
+        in_time &= e.dt_us >= latest;
+        latest = e.dt_us;
+        let (bx, by) = (usize::from(e.x) + 1, usize::from(e.y) + 1);
+        if bx > SORT_BUCKETS || by > SORT_BUCKETS {
+            return None;
+        }
+        next[bx] = next[bx].wrapping_add(1);
+        by_row[by] = by_row[by].wrapping_add(1);
     }
-    for b in 1..=w {
+    if !in_time {
+        return None;
+    }
+    // Some bucket of each holds the events (n > 0): the searches find one.
+    let first = |c: &[u16; SORT_BUCKETS + 1]| c.iter().position(|&k| k != 0).unwrap_or(1).saturating_sub(1);
+    let last = |c: &[u16; SORT_BUCKETS + 1]| c.iter().rposition(|&k| k != 0).unwrap_or(1).saturating_sub(1);
+    let (min_x, max_x, min_y, max_y) = (first(&next), last(&next), first(&by_row), last(&by_row));
+    // `order` lists the events by column, in time within one.
+    for b in min_x + 1..=max_x + 1 {
         next[b] = next[b].wrapping_add(next[b - 1]);
     }
     for (i, e) in events.iter().enumerate() {
-        let b = &mut next[usize::from(e.x - min_x)];
+        let b = &mut next[usize::from(e.x).min(SORT_BUCKETS)];
         order[usize::from(*b)] = i as u16;
         *b = b.wrapping_add(1);
     }
     // Taken by row in that order, each event's place in the result.
     let next = &mut by_row;
-    for b in 1..=h {
+    for b in min_y + 1..=max_y + 1 {
         next[b] = next[b].wrapping_add(next[b - 1]);
     }
     for &i in order.iter() {
         let i = usize::from(i);
-        let b = &mut next[usize::from(events[i].y - min_y)];
+        let b = &mut next[usize::from(events[i].y).min(SORT_BUCKETS)];
         pos[i] = *b;
         *b = b.wrapping_add(1);
     }
@@ -284,7 +295,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         }
         events[i] = carried;
     }
-    true
+    Some(([min_x as u16, max_x as u16, min_y as u16, max_y as u16], latest))
 }
 
 /// One in-place radix pass: reorders `events` by `key` and writes the 256 buckets'
@@ -674,23 +685,23 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let events = &mut events[..n];
         self.len = n;
         self.clusters = 0;
-        let (mut duration, mut in_time) = (0, true);
-        let (mut min_x, mut max_x, mut min_y, mut max_y) = (u16::MAX, 0, u16::MAX, 0);
-        for e in events.iter() {
-            in_time &= e.dt_us >= duration;
-            duration = duration.max(e.dt_us);
-            min_x = min_x.min(e.x);
-            max_x = max_x.max(e.x);
-            min_y = min_y.min(e.y);
-            max_y = max_y.max(e.y);
-        }
-        let m = Metric::new(sensor, cfg, duration);
         // Scratch for the sort, then the column tables of the sweep.
         let mut cells = [0u16; TABLE_CELLS];
-        let bounds = [min_x, max_x, min_y, max_y];
-        if !(in_time && sort_in_time_by_pixel(events, &mut self.labels, &mut cells, bounds)) {
-            sort_by_pixel(events);
-        }
+        // Events in time order (a window's) end with the latest; the sort finds their bounds.
+        let (duration, [min_x, max_x, _, _]) = match sort_in_time_by_pixel(events, &mut self.labels, &mut cells) {
+            Some((bounds, latest)) => (latest, bounds),
+            None => {
+                let (mut duration, mut min_x, mut max_x) = (0, u16::MAX, 0);
+                for e in events.iter() {
+                    duration = duration.max(e.dt_us);
+                    min_x = min_x.min(e.x);
+                    max_x = max_x.max(e.x);
+                }
+                sort_by_pixel(events);
+                (duration, [min_x, max_x, 0, 0])
+            }
+        };
+        let m = Metric::new(sensor, cfg, duration);
         let min_pts = usize::from(cfg.min_pts.max(1));
         let mut work: u32 = 0;
         if m.reach_y > MAX_REACH_ROWS as u64 {
@@ -1119,43 +1130,49 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             self.ranges[c] = ClusterRange { start: at, end: at };
             at += sizes[c];
         }
-        let clustered = usize::from(at);
-        // The fill pointer of each region, `tail` that of the rest; `labels[..n]` and
-        // `events` are as long, so the swaps below stay inside.
+        // The fill pointer of each region; the rest (noise and dropped events, labels beyond
+        // the clusters) fills from `at` on, in whatever order its events are left in.
         let labels = &mut self.labels[..n];
         let ranges = &mut self.ranges[..k];
-        let mut tail = clustered;
-        for r in 0..=k {
-            let end = ranges.get(r).map_or(n, |g| usize::from(g.start + sizes[r]));
-            loop {
-                let fill = ranges.get(r).map_or(tail, |g| usize::from(g.end));
-                if fill >= end {
-                    break;
-                }
-                let l = usize::from(labels[fill]);
-                let dest = match ranges.get_mut(l) {
-                    Some(g) => &mut g.end,
-                    None => {
-                        // Noise and dropped events (labels beyond the clusters) go last.
-                        if r == k {
-                            tail += 1;
-                            continue;
-                        }
-                        let d = tail;
-                        tail += 1;
-                        events.swap(fill, d);
-                        labels.swap(fill, d);
-                        continue;
-                    }
-                };
-                let d = usize::from(*dest);
-                *dest += 1;
+        let mut tail = usize::from(at);
+        for r in 0..k {
+            let end = usize::from(ranges[r].start + sizes[r]);
+            let mut fill = usize::from(ranges[r].end);
+            while fill < end {
+                let mut l = usize::from(labels[fill]);
                 if l != r {
-                    // Each swap puts one event in its final region, so this ends.
-                    events.swap(fill, d);
-                    labels.swap(fill, d);
+                    // The event at `fill` goes to its region's fill pointer and the one there
+                    // is carried on, until one of region `r` comes up: the swaps of events
+                    // into place one at a time, with the carried event kept out of memory
+                    // in between (each event moved once, not twice).
+                    let (mut carried, mut carried_label) = (events[fill], labels[fill]);
+                    loop {
+                        let d = match ranges.get_mut(l) {
+                            Some(g) => {
+                                g.end += 1;
+                                usize::from(g.end - 1)
+                            }
+                            None => {
+                                tail += 1;
+                                tail - 1
+                            }
+                        };
+                        // Each move puts one event in its final region, so this ends; `d` is
+                        // below `n` (every region's pointer stays within it).
+                        let (Some(slot), Some(slot_label)) = (events.get_mut(d), labels.get_mut(d)) else { break };
+                        carried = core::mem::replace(slot, carried);
+                        carried_label = core::mem::replace(slot_label, carried_label);
+                        l = usize::from(carried_label);
+                        if l == r {
+                            break;
+                        }
+                    }
+                    events[fill] = carried;
+                    labels[fill] = carried_label;
                 }
+                fill += 1;
             }
+            ranges[r].end = end as u16;
         }
         &self.ranges[..k]
     }
@@ -1445,10 +1462,13 @@ mod test {
             ];
             let (mut order, mut pos) = (vec![0u16; ev.len()], vec![0u16; ev.len()]);
             let before = ev.clone();
-            if sort_in_time_by_pixel(&mut ev, &mut order, &mut pos, bounds) {
-                prop_assert_eq!(ev, want);
-            } else {
-                prop_assert_eq!(ev, before);
+            match sort_in_time_by_pixel(&mut ev, &mut order, &mut pos) {
+                Some((found, latest)) => {
+                    prop_assert_eq!(ev, want);
+                    prop_assert_eq!(found, bounds);
+                    prop_assert_eq!(latest, before.last().map_or(0, |e| e.dt_us));
+                }
+                None => prop_assert_eq!(ev, before),
             }
         }
 

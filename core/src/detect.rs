@@ -10,7 +10,7 @@ use crate::{
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
     config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
-    fit::{fit_with, fit_within, Centre, FitConfig},
+    fit::{fit_in, fit_with, Centre, Extent, FitConfig, MAX_SPREAD},
     math::sqrt,
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
@@ -232,7 +232,8 @@ pub fn process<const N: usize, const C: usize>(
     let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
     let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
     let mut starts: heapless::Vec<Option<Circle>, C> = heapless::Vec::new();
-    let merged = join_crescents(clusterer, events, t_ref, &mut starts);
+    let mut extents: heapless::Vec<Extent, C> = heapless::Vec::new();
+    let merged = join_crescents(clusterer, events, t_ref, &mut starts, &mut extents);
     let mut ranges: heapless::Vec<ClusterRange, C> = heapless::Vec::new();
     for r in clusterer.ranges() {
         // The clusterer holds at most C clusters: a push cannot fail.
@@ -244,10 +245,11 @@ pub fn process<const N: usize, const C: usize>(
     let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {
         let start = starts.get(k).copied().flatten();
-        let _ = fits.push(fit_with(&[slice(events, r)], start, t_ref, &cfg.fit, &mut scratch));
+        let extent = extents.get(k);
+        let _ = fits.push(fit_in(&[slice(events, r)], extent, start, t_ref, &cfg.fit, &mut scratch, MAX_SPREAD));
     }
-    let merged = merged + join_fitted(events, &mut ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
-    recruit(events, &ranges, &mut fits, t_ref, &cfg.fit, &mut scratch);
+    let merged = merged + join_fitted(events, &mut ranges, &mut extents, &mut fits, t_ref, &cfg.fit, &mut scratch);
+    recruit(events, &ranges, &extents, &mut fits, t_ref, &cfg.fit, &mut scratch);
     let mut rejected = 0u16;
     out.centres.clear();
     for f in &fits {
@@ -289,22 +291,26 @@ const JOIN_MAX_RMS: f32 = 1.0;
 /// wide; they join when the algebraic circle through their union ([`Moments`]) passes within
 /// [`JOIN_MAX_RMS`] of the events of each and is no larger than the union. Returns how many
 /// clusters were joined to another; `starts` receives the algebraic circle of each
-/// cluster as it is then (joined or not), to start its fit from.
+/// cluster as it is then (joined or not), to start its fit from, and `extents` its events'
+/// [`Extent`].
 fn join_crescents<const N: usize, const C: usize>(
     clusterer: &mut Clusterer<N, C>,
     events: &mut [WindowEvent],
     t_ref: u32,
     starts: &mut heapless::Vec<Option<Circle>, C>,
+    extents: &mut heapless::Vec<Extent, C>,
 ) -> u16 {
     let mut boxes: heapless::Vec<[u16; 4], C> = heapless::Vec::new();
     let mut sums: heapless::Vec<Moments, C> = heapless::Vec::new();
+    extents.clear();
     for r in clusterer.group(events) {
         let part = slice(events, r);
-        let b = part
-            .iter()
-            .fold([u16::MAX, u16::MAX, 0, 0], |b, e| [b[0].min(e.x), b[1].min(e.y), b[2].max(e.x), b[3].max(e.y)]);
-        let _ = boxes.push(b);
-        let _ = sums.push(Moments::of(part, t_ref));
+        let mut x = Extent::EMPTY;
+        x.add_all(part);
+        let m = Moments::of(part, t_ref);
+        let _ = boxes.push([x.x_lo, x.y_lo, x.x_hi, x.y_hi]);
+        let _ = sums.push(m);
+        let _ = extents.push(x);
     }
     let k = boxes.len();
     // Union-find over clusters, each root the lowest index of its set.
@@ -314,17 +320,29 @@ fn join_crescents<const N: usize, const C: usize>(
     }
     let merged = join_pairs(&boxes, &sums, &mut into);
     // The joined clusters' sums, in the order `merge` numbers them (by their lowest member).
+    // The extents are joined in place: a set's slot is at most its lowest member's index,
+    // and every member comes after it, so no extent is overwritten before it is read.
     let mut joined: heapless::Vec<Moments, C> = heapless::Vec::new();
     let mut slot = [0u16; C];
     for c in 0..k {
         let r = root(&into, c);
+        let own = extents.get(c).copied().unwrap_or(Extent::EMPTY);
         if r == c {
             slot[c] = joined.len() as u16;
+            if let Some(x) = extents.get_mut(joined.len()) {
+                *x = own;
+            }
             let _ = joined.push(sums[c]);
-        } else if let Some(m) = joined.get_mut(usize::from(slot[r])) {
-            m.add(&sums[c]);
+        } else {
+            if let Some(m) = joined.get_mut(usize::from(slot[r])) {
+                m.add(&sums[c]);
+            }
+            if let Some(x) = extents.get_mut(usize::from(slot[r])) {
+                x.join(&own);
+            }
         }
     }
+    extents.truncate(joined.len());
     starts.clear();
     for m in &joined {
         let _ = starts.push(m.circle());
@@ -439,6 +457,7 @@ const JOIN_GIVE_UP: f32 = 1.75 * JOIN_MAX_SPREAD;
 fn join_fitted<const C: usize>(
     events: &mut [WindowEvent],
     ranges: &mut heapless::Vec<ClusterRange, C>,
+    extents: &mut heapless::Vec<Extent, C>,
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
@@ -462,7 +481,16 @@ fn join_fitted<const C: usize>(
                 continue;
             }
             let (ri, rj) = (ranges[i], ranges[j]);
-            let union = fit_within(&[slice(events, &ri), slice(events, &rj)], None, t_ref, cfg, scratch, JOIN_GIVE_UP);
+            let extent = match (extents.get(i), extents.get(j)) {
+                (Some(a), Some(b)) => Some({
+                    let mut x = *a;
+                    x.join(b);
+                    x
+                }),
+                _ => None,
+            };
+            let parts = [slice(events, &ri), slice(events, &rj)];
+            let union = fit_in(&parts, extent.as_ref(), None, t_ref, cfg, scratch, JOIN_GIVE_UP);
             let Some(u) = union.filter(|u| u.spread <= JOIN_MAX_SPREAD) else {
                 j += 1;
                 continue;
@@ -478,6 +506,12 @@ fn join_fitted<const C: usize>(
             }
             ranges[i].end += len_j;
             ranges.remove(j);
+            if let (Some(x), Some(slot)) = (extent, extents.get_mut(i)) {
+                *slot = x;
+            }
+            if j < extents.len() {
+                extents.remove(j);
+            }
             fits.remove(j);
             fits[i] = Some(u);
             merged += 1;
@@ -508,6 +542,7 @@ const RECRUIT_ROUNDS: usize = 2;
 fn recruit<const C: usize>(
     events: &mut [WindowEvent],
     ranges: &heapless::Vec<ClusterRange, C>,
+    extents: &heapless::Vec<Extent, C>,
     fits: &mut heapless::Vec<Option<Centre>, C>,
     t_ref: u32,
     cfg: &FitConfig,
@@ -522,12 +557,15 @@ fn recruit<const C: usize>(
     let t_last_ms = noise.iter().fold(0, |m, e| m.max(e.dt_us)) as f32 * 1e-3;
     let t_far = t_ref_ms.max(t_last_ms - t_ref_ms);
     let mut found = [WindowEvent::default(); MAX_RECRUITS];
-    for (r, f) in ranges.iter().zip(fits.iter_mut()) {
+    for (k, (r, f)) in ranges.iter().zip(fits.iter_mut()).enumerate() {
         if f.is_none() {
             continue;
         }
         let part = slice(events, r);
-        let (t_lo, t_hi) = part.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e.dt_us), hi.max(e.dt_us)));
+        let (t_lo, t_hi) = match extents.get(k) {
+            Some(x) => (x.t_lo, x.t_hi),
+            None => part.iter().fold((u32::MAX, 0), |(lo, hi), e| (lo.min(e.dt_us), hi.max(e.dt_us))),
+        };
         // A round that takes no events, or whose fit fails, leaves the circle as it was: the
         // next round would search the same rows for the same events, so none follows.
         for _round in 0..RECRUIT_ROUNDS {

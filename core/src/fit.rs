@@ -153,11 +153,24 @@ pub fn fit_within(
     scratch: &mut [[f32; 3]],
     give_up: f32,
 ) -> Option<Centre> {
+    fit_in(parts, None, start, t_ref_us, cfg, scratch, give_up)
+}
+
+/// [`fit_within`] of events whose [`Extent`] the caller has already (`None`: taken here).
+pub(crate) fn fit_in(
+    parts: &[&[WindowEvent]],
+    extent: Option<&Extent>,
+    start: Option<Circle>,
+    t_ref_us: u32,
+    cfg: &FitConfig,
+    scratch: &mut [[f32; 3]],
+    give_up: f32,
+) -> Option<Centre> {
     let n: usize = parts.iter().map(|p| p.len()).sum();
     if n < usize::from(cfg.min_events.max(5)) || n > usize::from(u16::MAX) {
         return None;
     }
-    let frame = Frame::of(parts);
+    let frame = extent.map_or_else(|| Frame::of(parts), Frame::from_extent);
     let result = match cfg.method {
         FitMethod::Centroid => centroid(parts, &frame),
         FitMethod::Ols | FitMethod::Erwls => {
@@ -188,6 +201,60 @@ pub fn fit_within(
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
 }
 
+/// The integer summary of a set of events that a fit's local frame is made from: their
+/// bounding box, time span, and the sum of their times. Extents of disjoint sets join
+/// exactly into that of their union, so a caller that has them already (see
+/// [`detect::process`](crate::detect::process)) spares the fit a pass over the events.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Extent {
+    pub(crate) x_lo: u16,
+    pub(crate) x_hi: u16,
+    pub(crate) y_lo: u16,
+    pub(crate) y_hi: u16,
+    pub(crate) t_lo: u32,
+    pub(crate) t_hi: u32,
+    t_sum: u64,
+    count: u32,
+}
+
+impl Extent {
+    /// Of no events.
+    pub(crate) const EMPTY: Self =
+        Self { x_lo: u16::MAX, x_hi: 0, y_lo: u16::MAX, y_hi: 0, t_lo: u32::MAX, t_hi: 0, t_sum: 0, count: 0 };
+
+    /// Takes in one event.
+    #[inline(always)]
+    pub(crate) fn add(&mut self, e: &WindowEvent) {
+        self.t_lo = self.t_lo.min(e.dt_us);
+        self.t_hi = self.t_hi.max(e.dt_us);
+        self.x_lo = self.x_lo.min(e.x);
+        self.x_hi = self.x_hi.max(e.x);
+        self.y_lo = self.y_lo.min(e.y);
+        self.y_hi = self.y_hi.max(e.y);
+        self.t_sum += u64::from(e.dt_us);
+    }
+
+    /// Takes in `events` (fewer than 2³² in all).
+    pub(crate) fn add_all(&mut self, events: &[WindowEvent]) {
+        for e in events {
+            self.add(e);
+        }
+        self.count = self.count.wrapping_add(events.len() as u32);
+    }
+
+    /// Becomes the extent of the union with `other`'s (disjoint) events.
+    pub(crate) fn join(&mut self, other: &Self) {
+        self.x_lo = self.x_lo.min(other.x_lo);
+        self.x_hi = self.x_hi.max(other.x_hi);
+        self.y_lo = self.y_lo.min(other.y_lo);
+        self.y_hi = self.y_hi.max(other.y_hi);
+        self.t_lo = self.t_lo.min(other.t_lo);
+        self.t_hi = self.t_hi.max(other.t_hi);
+        self.t_sum += other.t_sum;
+        self.count = self.count.wrapping_add(other.count);
+    }
+}
+
 /// Local coordinates: pixels relative to the cluster's bounding-box centre and time in
 /// milliseconds relative to the cluster's mean time, so that f32 keeps full precision and
 /// the centre is uncorrelated with the velocity while fitting.
@@ -212,23 +279,18 @@ struct Local {
 
 impl Frame {
     fn of(parts: &[&[WindowEvent]]) -> Self {
-        let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (u16::MAX, 0u16, u16::MAX, 0u16);
-        let mut t_sum = 0u64;
-        let mut count = 0u64;
-        let (mut t_lo, mut t_hi) = (u32::MAX, 0u32);
+        let mut x = Extent::EMPTY;
         for part in parts {
-            for e in part.iter() {
-                t_lo = t_lo.min(e.dt_us);
-                t_hi = t_hi.max(e.dt_us);
-                x_lo = x_lo.min(e.x);
-                x_hi = x_hi.max(e.x);
-                y_lo = y_lo.min(e.y);
-                y_hi = y_hi.max(e.y);
-                t_sum += u64::from(e.dt_us);
-            }
-            count += part.len() as u64;
+            x.add_all(part);
         }
-        let t_mean_us = t_sum / count.max(1);
+        Self::from_extent(&x)
+    }
+
+    /// The frame of events whose [`Extent`] is `x`: the same bits as [`of`](Self::of) those
+    /// events, since an extent is made of integers whatever the order they were taken in.
+    fn from_extent(x: &Extent) -> Self {
+        let Extent { x_lo, x_hi, y_lo, y_hi, t_lo, t_hi, t_sum, count } = *x;
+        let t_mean_us = t_sum / u64::from(count.max(1));
         let tc = t_mean_us as f32 * 1e-3;
         Self {
             // Halves of integers: exact in f32.
@@ -318,7 +380,7 @@ const MAX_STEP_FRACTION: f32 = 0.25;
 /// hundreds of events (simulated DAVIS346 cone: 300–1000 events, spread 3–9 px), which ran all
 /// their iterations as tilted cylinders: a third of the window's passes over events. Centre
 /// RMS and found rates of the simulated recordings are unchanged to the fourth decimal.
-const MAX_SPREAD: f32 = 3.0;
+pub(crate) const MAX_SPREAD: f32 = 3.0;
 /// Largest weighted spread, px, of an eRWLS fit's first pass (whose kernel comes from the
 /// start's RMS, not yet from the residuals' median, see [`MAX_SPREAD`]). Clutter that starts
 /// within [`MAX_START_RMS`] mostly ends between 1 and 3 px after all its iterations (a fifth
