@@ -734,7 +734,7 @@ fn cylinder(
         }
         it += 1;
     }
-    if reweight {
+    if reweight && spread <= ELLIPSE_MAX_SPREAD {
         if let Some([du, dv]) = ellipse_offset(events, f, &p, &w) {
             p[0] += du;
             p[1] += dv;
@@ -743,6 +743,11 @@ fn cylinder(
     Some(Local { p, spread, converged })
 }
 
+/// Largest weighted spread, px, of a fit that [`ellipse_offset`] refines. A circle's edge
+/// leaves well under a pixel (simulated DAVIS346 cone: no fit beyond 0.88 px was a true
+/// circle); the fits beyond are clutter, which ends anyhow between 1 and 3 px and is not
+/// worth the M4F a pass over its events.
+const ELLIPSE_MAX_SPREAD: f32 = 1.25;
 /// Largest move of the centre from the fitted circle's to the ellipse's, in radii: a tilted
 /// circle's image of b/a = 0.7 (46° of tilt) moves it by a few hundredths of a radius, so a
 /// larger move is the conic fitting noise or clutter.
@@ -750,6 +755,53 @@ const MAX_ELLIPSE_OFFSET: f32 = 0.15;
 /// Smallest ratio of the ellipse's axes accepted (b/a, from the conic's eigenvalues as
 /// their ratio's square): below it the conic is no tilted circle's image.
 const MIN_ELLIPSE_AXIS_RATIO_SQ: f32 = 0.25;
+
+/// One pass's sums for [`ellipse_offset`] over `events` (local `[x, y, τ]`), added to `s`:
+/// the lower triangle of ZᵀWZ (row by row) and then ZᵀW(−y²), for rows
+/// Z = (x² − y², xy, x, y, 1) in radii about the moving centre.
+// Out of line and with its sums in locals, as `pass_with`: kept in registers on the M4F.
+#[inline(never)]
+fn conic_pass(events: &[[f32; 3]], p: &[f32; 5], inv_r: f32, scale: f32, s: &mut [f32; 20]) {
+    let [u, v, va, vb, r] = *p;
+    let [mut m00, mut m10, mut m11, mut m20, mut m21, mut m22, mut m30, mut m31, mut m32, mut m33, mut m40, mut m41, mut m42, mut m43, mut m44, mut b0, mut b1, mut b2, mut b3, mut b4] =
+        *s;
+    for &[x, y, t] in events {
+        let (dx, dy) = (x - u - va * t, y - v - vb * t);
+        let q = dx * dx + dy * dy;
+        let xi = q * inv_sqrt(q) - r;
+        let z = xi * xi * scale;
+        if z > MAX_WEIGHT_EXPONENT || z.is_nan() {
+            continue;
+        }
+        let wi = exp_neg(z);
+        let (x, y) = (dx * inv_r, dy * inv_r);
+        let (xx, yy) = (x * x, y * y);
+        let z0 = xx - yy;
+        let z1 = x * y;
+        let (w0, w1, w2, w3) = (wi * z0, wi * z1, wi * x, wi * y);
+        m00 += w0 * z0;
+        m10 += w1 * z0;
+        m11 += w1 * z1;
+        m20 += w2 * z0;
+        m21 += w2 * z1;
+        m22 += w2 * x;
+        m30 += w3 * z0;
+        m31 += w3 * z1;
+        m32 += w3 * x;
+        m33 += w3 * y;
+        m40 += w0;
+        m41 += w1;
+        m42 += w2;
+        m43 += w3;
+        m44 += wi;
+        b0 -= w0 * yy;
+        b1 -= w1 * yy;
+        b2 -= w2 * yy;
+        b3 -= w3 * yy;
+        b4 -= wi * yy;
+    }
+    *s = [m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, m40, m41, m42, m43, m44, b0, b1, b2, b3, b4];
+}
 
 /// The offset from the fitted circle's centre to the centre of the ellipse through the same
 /// events, in the local frame, or `None` when the conic is no plausible ellipse.
@@ -764,38 +816,15 @@ const MIN_ELLIPSE_AXIS_RATIO_SQ: f32 = 0.25;
 /// 0` (in radii about the circle's centre; the normalisation excludes no ellipse near a
 /// circle) by weighted algebraic least squares, and its centre is the ellipse's.
 fn ellipse_offset(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights) -> Option<[f32; 2]> {
-    let [u, v, va, vb, r] = *p;
+    let r = p[4];
     if r.partial_cmp(&0.5) != Some(core::cmp::Ordering::Greater) {
         return None;
     }
     let inv_r = 1.0 / r;
     let scale = 0.5 / (w.sigma * w.sigma);
-    // Lower triangle of ZᵀWZ and ZᵀW(−y²) for rows Z = (x² − y², xy, x, y, 1).
-    let mut m = [[0.0f32; 5]; 5];
-    let mut b = [0.0f32; 5];
-    let mut add = |events: &[[f32; 3]]| {
-        for &[x, y, t] in events {
-            let (dx, dy) = (x - u - va * t, y - v - vb * t);
-            let xi = sqrt(dx * dx + dy * dy) - r;
-            let z = xi * xi * scale;
-            if z > MAX_WEIGHT_EXPONENT || z.is_nan() {
-                continue;
-            }
-            let wi = exp_neg(z);
-            let (x, y) = (dx * inv_r, dy * inv_r);
-            let row = [x * x - y * y, x * y, x, y, 1.0];
-            let target = -y * y;
-            for i in 0..5 {
-                let wr = wi * row[i];
-                for j in 0..=i {
-                    m[i][j] += wr * row[j];
-                }
-                b[i] += wr * target;
-            }
-        }
-    };
+    let mut s = [0.0f32; 20];
     if ev.held {
-        add(ev.scratch.get(..ev.n).unwrap_or(&[]));
+        conic_pass(ev.scratch.get(..ev.n).unwrap_or(&[]), p, inv_r, scale, &mut s);
     } else {
         let mut at = (0, 0);
         loop {
@@ -803,9 +832,18 @@ fn ellipse_offset(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights) -> Opti
             if k == 0 {
                 break;
             }
-            add(ev.scratch.get(..k).unwrap_or(&[]));
+            conic_pass(ev.scratch.get(..k).unwrap_or(&[]), p, inv_r, scale, &mut s);
         }
     }
+    let [m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, m40, m41, m42, m43, m44, b0, b1, b2, b3, b4] = s;
+    let m = [
+        [m00, 0.0, 0.0, 0.0, 0.0],
+        [m10, m11, 0.0, 0.0, 0.0],
+        [m20, m21, m22, 0.0, 0.0],
+        [m30, m31, m32, m33, 0.0],
+        [m40, m41, m42, m43, m44],
+    ];
+    let b = [b0, b1, b2, b3, b4];
     let [a, bxy, d, e, _] = solve_spd::<5>(m, b)?;
     let c = 1.0 - a;
     // Eigenvalues of the quadratic part [[a, b/2], [b/2, c]]: both positive for an ellipse.
