@@ -531,11 +531,14 @@ fn place(pts: &[Pt], lattice: &HashMap<Cell, usize>, pattern: &Pattern) -> Resul
     scored.sort_by_key(|l| std::cmp::Reverse(l.len()));
     let Some(best) = scored.first().map(Vec::len) else { return Err(Miss::NoPlacement) };
     // Rivals: placements nearly as good that are not the best's own half turn (even COLS).
-    // A placement that leaves strays out must hold at least two points more than any
-    // other: a rival holds the strays instead of a whole edge line of the grid, so it
-    // wins only with more strays than that line has detected circles.
+    // The best must hold at least two points more than any other. A placement that leaves
+    // strays out competes with one that holds the strays instead of a whole edge line of the
+    // grid; and one that holds every point may owe that to a single point in an edge line,
+    // a disc of the background that lines up with the lattice one step beyond a grid whose
+    // far columns are too dim to be seen (simulated DVXplorer 4x11 cone, low light, seed 2:
+    // nine columns and such a disc were labelled two columns off, every point wrong).
     let twin = |a: &[(usize, usize)], b: &[(usize, usize)]| pattern.cols % 2 == 0 && is_half_turn(a, b, pattern);
-    let margin = if best == n { 1 } else { 2 };
+    let margin = 2;
     let rivals: Vec<usize> = (1..scored.len()).filter(|&q| scored[q].len() + margin > best).collect();
     match rivals.as_slice() {
         [] => Ok(scored.swap_remove(0)),
@@ -771,6 +774,29 @@ mod test {
     fn find(c: &[(CenterRecord, Option<usize>)], pattern: &Pattern) -> Result<GridDetection, Miss> {
         let centres: Vec<CenterRecord> = c.iter().map(|x| x.0).collect();
         find_grid(&centres, pattern, &FindOptions::default())
+    }
+
+    /// The far columns of the board too dim to be seen, and a background disc that lines up
+    /// with the lattice one diagonal step beyond the first column: shifted by two columns,
+    /// the lattice plus the disc fills the whole pattern, the true labelling leaves the disc
+    /// out. Labelled it would be two columns off, every point wrong; it must be a miss.
+    #[test]
+    fn a_lone_disc_beyond_a_partial_grid_does_not_shift_its_labels() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        for deg in (0..360).step_by(30) {
+            let shot = Shot { distance: 0.9, ..Shot::flat(f64::from(deg) + 4.0) };
+            let all = shoot(&pattern, &shot, 0.1, deg as u64);
+            let mut seen: Vec<(CenterRecord, Option<usize>)> =
+                all.iter().filter(|(_, i)| i.is_some_and(|i| i / pattern.rows <= 8)).copied().collect();
+            // Board point (column −2, row 1): where a grid two columns longer would have one.
+            let (p, r) = shot.project(&pattern, -2.0 * pattern.spacing, 2.0 * pattern.spacing);
+            seen.push((centre(p, r), None));
+            let truth: Vec<_> = all.iter().copied().chain(std::iter::once((centre(p, r), None))).collect();
+            match find(&seen, &pattern) {
+                Ok(g) => check(&g, &truth),
+                Err(m) => assert_eq!(m, Miss::Ambiguous, "{deg}°"),
+            }
+        }
     }
 
     #[test]

@@ -42,6 +42,9 @@ const RECORDING_S: f64 = 12.0;
 /// The issue's target for the reprojection RMS in good light (the paper's figure), px; the
 /// low-light case meets it too (0.105 px) and is held to it.
 const TARGET_RMS_PX: f64 = 0.13;
+/// Low light has no RMS target in the issue; guarded at what the dimmest case reaches with a
+/// margin.
+const LOW_LIGHT_RMS_PX: f64 = 0.18;
 /// The issue's target for fx and fy, percent.
 const TARGET_FOCAL_PCT: f64 = 0.1;
 /// The 3 s recordings of the windowed-against-continuous comparison are too short for the
@@ -274,6 +277,24 @@ fn dvxplorer_4x11_cone_good_light() {
         windowed: true,
     });
     guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
+}
+
+/// The DVXplorer in low light: its far columns often too dim for the core, the case in which
+/// the finder once labelled a grid two columns off (a background disc lined up beyond the
+/// seen columns; seed 2, window 297; see `grid::place`). The issue sets no RMS target for low
+/// light; this one reaches 0.160 px (seeds 1, 5: 0.141, 0.143).
+#[test]
+fn dvxplorer_4x11_cone_low_light() {
+    let f = run(&Case {
+        sensor: "dvxplorer",
+        pattern: "4x11",
+        trajectory: Trajectory::Cone,
+        light: Light::Low,
+        seconds: RECORDING_S,
+        seed: 2,
+        windowed: true,
+    });
+    guard(&f, LOW_LIGHT_RMS_PX, TARGET_FOCAL_PCT);
 }
 
 #[test]
