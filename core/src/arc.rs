@@ -15,7 +15,10 @@
 //! Sums are taken about a point of the cluster (its first event), so that `f32` holds them
 //! to a few parts in a million over the few tens of pixels a circle spans.
 
-use crate::{math::max, window::WindowEvent};
+use crate::{
+    math::{max, sqrt_exact},
+    window::WindowEvent,
+};
 
 /// Exponents `(a, b, c)` of the power sums `Σ xᵃ yᵇ τᶜ`, in storage order: the products the
 /// moving-circle fit needs (its rows `x, y, τx, τy, 1, τ` with one another and with
@@ -283,7 +286,7 @@ fn rms(s: &[f32; 31], theta: &[f32; 6], r: f32) -> f32 {
         return f32::INFINITY;
     }
     // The residual is a difference of large sums: rounding can take it a little below zero.
-    libm::sqrtf(max(algebraic_residual(s, theta), 0.0) / n) / (2.0 * r)
+    sqrt_exact(max(algebraic_residual(s, theta), 0.0) / n) / (2.0 * r)
 }
 
 /// Kåsa's moving-circle fit to the summed power sums `parts`, all about `origin`; also its
@@ -318,7 +321,7 @@ fn fit_about(parts: &[[f32; 31]], origin: [f32; 2], with_rms: bool) -> Option<(C
     if !(r2 > 0.0 && r2.is_finite()) {
         return None;
     }
-    let r = libm::sqrtf(r2);
+    let r = sqrt_exact(r2);
     let rms = if with_rms { rms(&s, &theta, r) } else { f32::NAN };
     let circle = Circle { u: origin[0] + u, v: origin[1] + v, vu: -0.5 * theta[2], vv: -0.5 * theta[3], r, rms };
     Some((circle, theta))
@@ -337,7 +340,7 @@ pub(crate) fn solve_spd<const K: usize>(mut m: [[f32; K]; K], mut b: [f32; K]) -
         if d.is_nan() || d <= 0.0 || d.is_infinite() {
             return None;
         }
-        let d = libm::sqrtf(d);
+        let d = sqrt_exact(d);
         m[j][j] = d;
         for i in j + 1..K {
             let mut s = m[i][j];

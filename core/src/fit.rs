@@ -758,23 +758,36 @@ const MIN_ELLIPSE_AXIS_RATIO_SQ: f32 = 0.25;
 
 /// One pass's sums for [`ellipse_offset`] over `events` (local `[x, y, τ]`), added to `s`:
 /// the lower triangle of ZᵀWZ (row by row) and then ZᵀW(−y²), for rows
-/// Z = (x² − y², xy, x, y, 1) in radii about the moving centre.
-// Out of line and with its sums in locals, as `pass_with`: kept in registers on the M4F.
+/// Z = (x² − y², xy, x, y, 1) in radii about the moving centre. Overwrites `events` (the
+/// fit's last pass over them).
+// Out of line, as `pass_with`. In two loops: the first leaves each kept event's weight and
+// position in radii in its place (packed to the front), the second sums them. In one loop,
+// the 20 sums with the centre, the kernel and the constants of the weight outgrew the M4F's
+// 32 float registers, and their spills and register shuffles were a third of the pass; the
+// second loop needs none, and the sums are the same operations in the same order.
 #[inline(never)]
-fn conic_pass(events: &[[f32; 3]], p: &[f32; 5], inv_r: f32, scale: f32, s: &mut [f32; 20]) {
+fn conic_pass(events: &mut [[f32; 3]], p: &[f32; 5], inv_r: f32, scale: f32, s: &mut [f32; 20]) {
     let [u, v, va, vb, r] = *p;
-    let [mut m00, mut m10, mut m11, mut m20, mut m21, mut m22, mut m30, mut m31, mut m32, mut m33, mut m40, mut m41, mut m42, mut m43, mut m44, mut b0, mut b1, mut b2, mut b3, mut b4] =
-        *s;
-    for &[x, y, t] in events {
+    let mut kept = 0;
+    for i in 0..events.len() {
+        let Some(&[x, y, t]) = events.get(i) else { break };
         let (dx, dy) = (x - u - va * t, y - v - vb * t);
         let q = dx * dx + dy * dy;
         let xi = q * inv_sqrt(q) - r;
         let z = xi * xi * scale;
-        if z > MAX_WEIGHT_EXPONENT || z.is_nan() {
+        // One comparison: a NaN (an event on the centre) is unordered and passed over too.
+        if z.partial_cmp(&MAX_WEIGHT_EXPONENT).is_none_or(|o| o.is_gt()) {
             continue;
         }
-        let wi = exp_neg(z);
-        let (x, y) = (dx * inv_r, dy * inv_r);
+        // `kept <= i`: the slot is one read already.
+        if let Some(slot) = events.get_mut(kept) {
+            *slot = [exp_neg(z), dx * inv_r, dy * inv_r];
+        }
+        kept += 1;
+    }
+    let [mut m00, mut m10, mut m11, mut m20, mut m21, mut m22, mut m30, mut m31, mut m32, mut m33, mut m40, mut m41, mut m42, mut m43, mut m44, mut b0, mut b1, mut b2, mut b3, mut b4] =
+        *s;
+    for &[wi, x, y] in events.get(..kept).unwrap_or(&[]) {
         let (xx, yy) = (x * x, y * y);
         let z0 = xx - yy;
         let z1 = x * y;
@@ -824,7 +837,7 @@ fn ellipse_offset(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights) -> Opti
     let scale = 0.5 / (w.sigma * w.sigma);
     let mut s = [0.0f32; 20];
     if ev.held {
-        conic_pass(ev.scratch.get(..ev.n).unwrap_or(&[]), p, inv_r, scale, &mut s);
+        conic_pass(ev.scratch.get_mut(..ev.n).unwrap_or(&mut []), p, inv_r, scale, &mut s);
     } else {
         let mut at = (0, 0);
         loop {
@@ -832,7 +845,7 @@ fn ellipse_offset(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights) -> Opti
             if k == 0 {
                 break;
             }
-            conic_pass(ev.scratch.get(..k).unwrap_or(&[]), p, inv_r, scale, &mut s);
+            conic_pass(ev.scratch.get_mut(..k).unwrap_or(&mut []), p, inv_r, scale, &mut s);
         }
     }
     let [m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, m40, m41, m42, m43, m44, b0, b1, b2, b3, b4] = s;

@@ -25,6 +25,39 @@ pub(crate) fn sqrt(x: f32) -> f32 {
     }
 }
 
+/// `√x` correctly rounded, as IEEE 754 defines it (`sqrt_exact(x)` equals libm's `sqrtf(x)`
+/// bit for bit): the FPU's `vsqrt.f32` on an ARM hard-float target, where libm's is done in
+/// software (some 60 instructions a call), and libm's elsewhere.
+#[inline]
+pub(crate) fn sqrt_exact(x: f32) -> f32 {
+    #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+    {
+        // Through a core register and s0 (declared clobbered): Rust's checker allows the FPU's
+        // register classes only with double precision (vfp2), which the M4F lacks, though its
+        // single-precision `vsqrt.f32` is all this needs.
+        let r: u32;
+        // SAFETY: FPU instructions on registers only, s0 declared clobbered; the hard-float
+        // ABI guarantees the FPU is there and enabled.
+        #[allow(unsafe_code)]
+        unsafe {
+            core::arch::asm!(
+                "vmov s0, {x}",
+                "vsqrt.f32 s0, s0",
+                "vmov {r}, s0",
+                x = in(reg) x.to_bits(),
+                r = lateout(reg) r,
+                out("s0") _,
+                options(pure, nomem, nostack),
+            );
+        }
+        f32::from_bits(r)
+    }
+    #[cfg(not(all(target_arch = "arm", target_abi = "eabihf")))]
+    {
+        libm::sqrtf(x)
+    }
+}
+
 /// `x.max(y)` as libm's `fmaxf` takes it (`y` when `x` is NaN or below it, else `x`), inline:
 /// the M4F has no instruction for it, and `f32::max` was a call into libm every time.
 #[inline(always)]
@@ -72,6 +105,15 @@ mod test {
             x *= 1.37;
         }
         assert_eq!(sqrt(0.0), 0.0);
+    }
+
+    #[test]
+    fn exact_square_root_is_correctly_rounded() {
+        // f64's square root rounded to f32 is the correctly rounded one (53 ≥ 2·24 + 2 bits).
+        for b in (0..0x7f80_0000u32).step_by(4099) {
+            let x = f32::from_bits(b);
+            assert_eq!(sqrt_exact(x).to_bits(), (f64::from(x).sqrt() as f32).to_bits(), "x {x:e}");
+        }
     }
 
     /// The exponential as it was computed before (a floor of −m by truncation and a
