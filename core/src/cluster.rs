@@ -422,11 +422,10 @@ struct Tables<'c> {
 const NO_ROW: u32 = 0xFFFF_0000;
 
 /// A row within reach in [`Tables`]: the offsets in the cells of the lookups for an event at
-/// column offset 0 (the span's start and end, and the column right of the event's own).
+/// column offset 0 (the span's start and one past its end).
 #[derive(Clone, Copy, Default)]
 struct Near {
     lo: usize,
-    mid: usize,
     hi: usize,
 }
 
@@ -519,7 +518,7 @@ impl<'c> Tables<'c> {
                 continue;
             }
             let base = slot * self.stride + self.pad;
-            *near = Near { lo: base - o.s, mid: base + 1, hi: base + o.s + 1 };
+            *near = Near { lo: base - o.s, hi: base + o.s + 1 };
             len += 1;
             above += o.above;
         }
@@ -764,6 +763,8 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let (nearest, top_down) = (&by_nearest[..2 * reach + 1], &by_row[..2 * reach + 1]);
         let mut near = [Near::default(); 2 * MAX_REACH_ROWS + 1];
         let s0 = span[0];
+        // Runs of core points for linking (see `link_row`) are cut at gaps wider than this.
+        let gap = s0.min(span[reach].saturating_mul(2).saturating_add(1));
 
         let (mut counted, mut linked) = (0, 0);
         let (mut queries, mut core_points) = (0u32, 0u16);
@@ -781,13 +782,11 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             }
 
             // 2. Links and border points. Each core point joins the previous one in its row
-            //    when they are neighbours, and, in each row above, the first core point of
-            //    its span and the first one right of its column: the row's chain joins the
-            //    core points of either half of a span (their gaps are within the same-row
-            //    reach). A border point takes the first core point of the first span, from
-            //    the top down, that holds one.
+            //    when they are neighbours, and each run of them the core points within reach
+            //    in the rows above (see `link_row`). A border point takes the first core
+            //    point of the first span, from the top down, that holds one.
             let (row, len, above) = t.around(e.y, top_down, &mut near);
-            queries = queries.wrapping_add(self.link_row(events, &t, row, &near[..len], above, min_x, s0));
+            queries = queries.wrapping_add(self.link_row(events, &t, row, &near[..len], above, min_x, (s0, gap)));
             linked = usize::from(row.end).max(linked + 1);
         }
         stats.core = core_points;
@@ -800,6 +799,16 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// points before them within reach, and gives its border points their first core
     /// neighbour, from the rows `near` (from the top down; the first `above` of them above
     /// `row`). Returns the lookups made.
+    ///
+    /// Each core point joins the previous one in its row when they are neighbours (`s0`
+    /// columns apart at most). Those chains are cut into runs whose gaps are at most `gap`
+    /// columns, no more than twice the narrowest span plus one: every column from a run's
+    /// first less a span to its last plus that span is then within a span of one of the
+    /// run's points, so every core point there, in a row above, is a neighbour of the run,
+    /// and no other is. The run joins, in each row above, the first core point of that range
+    /// and each one more than `s0` columns right of the previous: the others are chained to
+    /// those already. A lookup per run and row where linking each core point took one per
+    /// point and row.
     // Kept out of line, as `count_row` is.
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
@@ -811,46 +820,30 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         near: &[Near],
         above: usize,
         min_x: u16,
-        s0: u16,
+        (s0, gap): (u16, u16),
     ) -> u32 {
         let mut queries = 0u32;
-        let mut prev: Option<(usize, u16)> = None;
+        // The previous core point and its column; the run's first core point and column.
+        let (mut prev, mut prev_x) = (usize::MAX, 0u16);
+        let (mut first, mut first_x) = (usize::MAX, 0u16);
+        let above = near.get(..above).unwrap_or(&[]);
         for k in usize::from(row.start)..usize::from(row.end) {
             let ex = events[k].x;
-            let x = usize::from(ex.wrapping_sub(min_x));
             if self.labels[k] & CORE != 0 {
-                let chained = prev.filter(|&(_, px)| ex - px <= s0);
-                prev = Some((k, ex));
-                if let Some((p, px)) = chained {
-                    self.union(p, k);
-                    // The core points of the spans of the previous core point are in its
-                    // set already; those of this span beyond are within the same-row
-                    // reach of each other, so joined by their row's chain.
-                    let px = usize::from(px.wrapping_sub(min_x));
-                    for nr in &near[..above] {
-                        let (lo, hi) = ((nr.lo + x).max(nr.hi + px), nr.hi + x);
-                        if lo < hi {
-                            queries = queries.wrapping_add(1);
-                            if let Some(j) = self.first_core(t.at(lo), t.at(hi)) {
-                                self.union(j, k);
-                            }
-                        }
-                    }
-                    continue;
+                let step = ex.wrapping_sub(prev_x);
+                if prev != usize::MAX && step <= s0 {
+                    self.union(prev, k);
                 }
-                for nr in &near[..above] {
-                    queries = queries.wrapping_add(1);
-                    let hi = t.at(nr.hi + x);
-                    let Some(j) = self.first_core(t.at(nr.lo + x), hi) else { continue };
-                    self.union(j, k);
-                    let mid = t.at(nr.mid + x);
-                    if j < mid {
-                        if let Some(j) = self.first_core(mid, hi) {
-                            self.union(j, k);
-                        }
+                if first == usize::MAX || step > gap {
+                    if first != usize::MAX {
+                        queries =
+                            queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
                     }
+                    (first, first_x) = (k, ex);
                 }
+                (prev, prev_x) = (k, ex);
             } else {
+                let x = usize::from(ex.wrapping_sub(min_x));
                 let mut best = NONE;
                 for nr in near {
                     queries = queries.wrapping_add(1);
@@ -862,13 +855,50 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 self.labels[k] = best;
             }
         }
+        if first != usize::MAX {
+            queries = queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
+        }
         queries
+    }
+
+    /// Joins the run of core points starting at `first`, from column `lo_x` to `hi_x`, to the
+    /// core points within reach of it in the rows `above` (see [`link_row`](Self::link_row)).
+    /// Returns the lookups made.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn link_run(
+        &mut self,
+        events: &[WindowEvent],
+        t: &Tables,
+        above: &[Near],
+        first: usize,
+        (lo_x, hi_x): (u16, u16),
+        min_x: u16,
+        s0: u16,
+    ) -> u32 {
+        let (lo_x, hi_x) = (usize::from(lo_x.wrapping_sub(min_x)), usize::from(hi_x.wrapping_sub(min_x)));
+        for nr in above {
+            let (lo, hi) = (t.at(nr.lo + lo_x), t.at(nr.hi + hi_x));
+            // Far enough left of any column that the first core point is joined.
+            let mut last = -i32::from(u16::MAX);
+            for (j, e) in (lo..).zip(events.get(lo..hi).unwrap_or(&[])) {
+                if self.labels[j] & CORE != 0 {
+                    let x = i32::from(e.x);
+                    if x - last > i32::from(s0) {
+                        self.union(j, first);
+                    }
+                    last = x;
+                }
+            }
+        }
+        above.len() as u32
     }
 
     /// The first core point of `events[lo..hi]`.
     #[inline]
     fn first_core(&self, lo: usize, hi: usize) -> Option<usize> {
-        (lo..hi).find(|&j| self.labels.get(j).is_some_and(|l| l & CORE != 0))
+        let part = self.labels.get(lo..hi)?;
+        part.iter().position(|l| l & CORE != 0).map(|p| lo + p)
     }
 
     /// DBSCAN over pairs of neighbouring rows (see the module's documentation).
