@@ -407,8 +407,10 @@ const SLOTS: usize = 3 * MAX_REACH_ROWS + 1;
 /// rows being counted (at most `reach` below it) can reach it.
 struct Tables<'c> {
     cells: &'c mut [u16; TABLE_CELLS],
-    /// Row held by each slot ([`NO_ROW`]: none yet), and its events.
-    keys: [u32; SLOTS],
+    /// Row held by each slot and its table's start (past the padding) in the cells, as
+    /// `row << CELL_BITS | start` ([`NO_ROW`]: none yet), three times over, so that a slot
+    /// shifted by a row distance needs no wrapping; and its events.
+    lut: [u32; 3 * SLOTS],
     rows: [Row; SLOTS],
     slots: usize,
     stride: usize,
@@ -418,8 +420,12 @@ struct Tables<'c> {
     next: usize,
 }
 
-/// The key of a slot of [`Tables`] that holds no row: no row distance from a row makes it.
-const NO_ROW: u32 = 0xFFFF_0000;
+/// The entry of a slot of [`Tables`] that holds no row: its row, `NO_ROW >> CELL_BITS`, is
+/// beyond every row and row distance.
+const NO_ROW: u32 = u32::MAX;
+/// Bits of a cell index in the entries of [`Tables`].
+const CELL_BITS: u32 = 13;
+const _: () = assert!(TABLE_CELLS <= 1 << CELL_BITS);
 
 /// A row within reach in [`Tables`]: the offsets in the cells of the lookups for an event at
 /// column offset 0 (the span's start and one past its end).
@@ -439,7 +445,16 @@ impl<'c> Tables<'c> {
         if slots > SLOTS || slots * stride > TABLE_CELLS {
             return None;
         }
-        Some(Self { cells, keys: [NO_ROW; SLOTS], rows: [Row::default(); SLOTS], slots, stride, min_x, pad, next: 0 })
+        Some(Self {
+            cells,
+            lut: [NO_ROW; 3 * SLOTS],
+            rows: [Row::default(); SLOTS],
+            slots,
+            stride,
+            min_x,
+            pad,
+            next: 0,
+        })
     }
 
     /// The cell at `i`. Every lookup is inside the tables by construction; the mask only
@@ -463,9 +478,14 @@ impl<'c> Tables<'c> {
             }
             self.next = end;
             let slot = usize::from(y) % self.slots;
-            self.keys[slot] = u32::from(y);
             self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
             let base = slot * self.stride;
+            let entry = (u32::from(y) << CELL_BITS) | (base + self.pad) as u32;
+            for k in 0..3 {
+                if let Some(e) = self.lut.get_mut(slot + k * self.slots) {
+                    *e = entry;
+                }
+            }
             // `slots · stride` cells fit (see `new`): the row's table is all there.
             let Some(table) = self.cells.get_mut(base..base + self.stride) else { continue };
             let mut c = 0;
@@ -504,20 +524,13 @@ impl<'c> Tables<'c> {
         let own = usize::from(y) % self.slots;
         for o in order {
             // `own + shift` is below three times `slots`.
-            let mut slot = own + o.shift;
-            if slot >= self.slots {
-                slot -= self.slots;
-            }
-            if slot >= self.slots {
-                slot -= self.slots;
-            }
-            let (Some(&key), Some(near)) = (self.keys.get(slot), out.get_mut(len)) else {
+            let (Some(&entry), Some(near)) = (self.lut.get(own + o.shift), out.get_mut(len)) else {
                 break;
             };
-            if key != (i32::from(y) + o.d) as u32 {
+            if entry >> CELL_BITS != (i32::from(y) + o.d) as u32 {
                 continue;
             }
-            let base = slot * self.stride + self.pad;
+            let base = (entry & ((1 << CELL_BITS) - 1)) as usize;
             *near = Near { lo: base - o.s, hi: base + o.s + 1 };
             len += 1;
             above += o.above;
@@ -576,14 +589,15 @@ fn count_row(
         let x = usize::from(e.x.wrapping_sub(min_x));
         if x != last_x {
             last_x = x;
-            let mut count = 0;
-            for nr in near {
-                queries = queries.wrapping_add(1);
+            let (mut count, mut used) = (0, near.len());
+            for (i, nr) in near.iter().enumerate() {
                 count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
                 if count >= min_pts {
+                    used = i + 1;
                     break;
                 }
             }
+            queries = queries.wrapping_add(used as u32);
             core = count >= min_pts;
         }
         cores += u16::from(core);
