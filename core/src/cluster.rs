@@ -841,22 +841,10 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let (mut prev, mut prev_x) = (usize::MAX, 0u16);
         let (mut first, mut first_x) = (usize::MAX, 0u16);
         let above = near.get(..above).unwrap_or(&[]);
-        for k in usize::from(row.start)..usize::from(row.end) {
+        let end = usize::from(row.end).min(events.len()).min(N);
+        for k in usize::from(row.start)..end {
             let ex = events[k].x;
-            if self.labels[k] & CORE != 0 {
-                let step = ex.wrapping_sub(prev_x);
-                if prev != usize::MAX && step <= s0 {
-                    self.union(prev, k);
-                }
-                if first == usize::MAX || step > gap {
-                    if first != usize::MAX {
-                        queries =
-                            queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
-                    }
-                    (first, first_x) = (k, ex);
-                }
-                (prev, prev_x) = (k, ex);
-            } else {
+            if self.labels[k] & CORE == 0 {
                 let x = usize::from(ex.wrapping_sub(min_x));
                 let mut best = NONE;
                 for nr in near {
@@ -867,7 +855,25 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                     }
                 }
                 self.labels[k] = best;
+                continue;
             }
+            if prev == usize::MAX {
+                (first, first_x) = (k, ex);
+            } else {
+                let step = ex.wrapping_sub(prev_x);
+                if step <= s0 {
+                    // `union(prev, k)`: no link has reached `k` yet (only rows above and
+                    // points before it in its row have been linked), so it is its own root.
+                    let parent = self.labels.get(prev).map_or(0, |&l| l & MASK);
+                    self.labels[k] = CORE | parent;
+                }
+                if step > gap {
+                    queries =
+                        queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
+                    (first, first_x) = (k, ex);
+                }
+            }
+            (prev, prev_x) = (k, ex);
         }
         if first != usize::MAX {
             queries = queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
