@@ -240,9 +240,10 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     // counts, without a pass of their own.
     let mut next = [0u16; SORT_BUCKETS + 1];
     let mut by_row = [0u16; SORT_BUCKETS + 1];
-    let (mut in_time, mut latest) = (true, 0u32);
+    // Steps forward in time, counted rather than and-ed together: a compare and an add.
+    let (mut forward, mut latest) = (0u32, 0u32);
     for e in events.iter() {
-        in_time &= e.dt_us >= latest;
+        forward = forward.wrapping_add(u32::from(e.dt_us >= latest));
         latest = e.dt_us;
         let (bx, by) = (usize::from(e.x) + 1, usize::from(e.y) + 1);
         if bx > SORT_BUCKETS || by > SORT_BUCKETS {
@@ -251,7 +252,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
         next[bx] = next[bx].wrapping_add(1);
         by_row[by] = by_row[by].wrapping_add(1);
     }
-    if !in_time {
+    if forward as usize != n {
         return None;
     }
     // Some bucket of each holds the events (n > 0): the searches find one.
@@ -1167,53 +1168,49 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             return &[];
         }
         let events = &mut events[..n];
-        let k = self.clusters;
-        // Counting sort by label, in place: region c < k holds cluster c, region k the rest.
+        let k = self.clusters.min(C);
+        // Counting sort by label, in place: region c < k holds cluster c, region k the rest
+        // (noise and dropped events, labels beyond the clusters), in whatever order its
+        // events are left in.
         let mut sizes = [0u16; C];
         for &l in &self.labels[..n] {
             if let Some(s) = sizes.get_mut(usize::from(l)) {
-                *s += 1;
+                *s = s.wrapping_add(1);
             }
         }
+        // The fill pointer of each region, and of the rest.
+        let mut next = [0u16; C];
         let mut at = 0u16;
         for c in 0..k {
-            self.ranges[c] = ClusterRange { start: at, end: at };
-            at += sizes[c];
+            next[c] = at;
+            self.ranges[c] = ClusterRange { start: at, end: at.wrapping_add(sizes[c]) };
+            at = at.wrapping_add(sizes[c]);
         }
-        // The fill pointer of each region; the rest (noise and dropped events, labels beyond
-        // the clusters) fills from `at` on, in whatever order its events are left in.
+        let mut tail = at;
         let labels = &mut self.labels[..n];
-        let ranges = &mut self.ranges[..k];
-        let mut tail = usize::from(at);
         for r in 0..k {
-            let end = usize::from(ranges[r].start + sizes[r]);
-            let mut fill = usize::from(ranges[r].end);
+            let end = usize::from(self.ranges[r].end);
+            // `next[r]` moves on past the events that cycles started before put in place.
+            let mut fill = usize::from(next[r]);
             while fill < end {
-                let mut l = usize::from(labels[fill]);
-                if l != r {
+                let l = labels[fill];
+                if usize::from(l) != r {
                     // The event at `fill` goes to its region's fill pointer and the one there
                     // is carried on, until one of region `r` comes up: the swaps of events
                     // into place one at a time, with the carried event kept out of memory
                     // in between (each event moved once, not twice).
-                    let (mut carried, mut carried_label) = (events[fill], labels[fill]);
+                    let (mut carried, mut carried_label) = (events[fill], l);
                     loop {
-                        let d = match ranges.get_mut(l) {
-                            Some(g) => {
-                                g.end += 1;
-                                usize::from(g.end - 1)
-                            }
-                            None => {
-                                tail += 1;
-                                tail - 1
-                            }
-                        };
+                        let g = usize::from(carried_label);
+                        let p = if g < k { &mut next[g] } else { &mut tail };
+                        let d = usize::from(*p);
+                        *p = p.wrapping_add(1);
                         // Each move puts one event in its final region, so this ends; `d` is
                         // below `n` (every region's pointer stays within it).
                         let (Some(slot), Some(slot_label)) = (events.get_mut(d), labels.get_mut(d)) else { break };
                         carried = core::mem::replace(slot, carried);
                         carried_label = core::mem::replace(slot_label, carried_label);
-                        l = usize::from(carried_label);
-                        if l == r {
+                        if usize::from(carried_label) == r {
                             break;
                         }
                     }
@@ -1222,7 +1219,6 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 }
                 fill += 1;
             }
-            ranges[r].end = end as u16;
         }
         &self.ranges[..k]
     }
