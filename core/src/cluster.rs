@@ -899,12 +899,12 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     ) -> u32 {
         let (lo_x, hi_x) = (usize::from(lo_x.wrapping_sub(min_x)), usize::from(hi_x.wrapping_sub(min_x)));
         for nr in above {
-            let (lo, hi) = (t.at(nr.lo + lo_x), t.at(nr.hi + hi_x));
+            let (lo, hi) = (t.at(nr.lo + lo_x), t.at(nr.hi + hi_x).min(events.len()).min(N));
             // Far enough left of any column that the first core point is joined.
             let mut last = -i32::from(u16::MAX);
-            for (j, e) in (lo..).zip(events.get(lo..hi).unwrap_or(&[])) {
+            for j in lo..hi {
                 if self.labels[j] & CORE != 0 {
-                    let x = i32::from(e.x);
+                    let x = i32::from(events[j].x);
                     if x - last > i32::from(s0) {
                         self.union(j, first);
                     }
