@@ -473,13 +473,7 @@ impl<'c> Tables<'c> {
                 break;
             }
             let (start, y) = (self.next, e.y);
-            let mut end = start + 1;
-            while end < events.len() && events[end].y == y {
-                end += 1;
-            }
-            self.next = end;
             let slot = usize::from(y) % self.slots;
-            self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
             let base = slot * self.stride;
             let entry = (u32::from(y) << CELL_BITS) | (base + self.pad) as u32;
             for k in 0..3 {
@@ -487,16 +481,22 @@ impl<'c> Tables<'c> {
                     *e = entry;
                 }
             }
-            // `slots · stride` cells fit (see `new`): the row's table is all there.
-            let Some(table) = self.cells.get_mut(base..base + self.stride) else { continue };
+            // `slots · stride` cells fit (see `new`): the row's table is all there (were it
+            // not, the sweep would stop building, and stay panic-free). The row's end is found
+            // on the way.
+            let Some(table) = self.cells.get_mut(base..base + self.stride) else {
+                self.next = events.len();
+                break;
+            };
             let mut c = 0;
             let first = self.pad + 1;
-            for (k, e) in events.get(start..end).unwrap_or(&[]).iter().enumerate() {
+            let mut end = start;
+            while let Some(e) = events.get(end).filter(|e| e.y == y) {
                 let to = usize::from(e.x.wrapping_sub(self.min_x)) + first;
                 // Events of one pixel or of neighbouring columns (most of them) fill a cell
                 // or none: no call for them.
                 if to > c {
-                    let v = (start + k) as u16;
+                    let v = end as u16;
                     if to == c + 1 {
                         if let Some(cell) = table.get_mut(c) {
                             *cell = v;
@@ -506,7 +506,10 @@ impl<'c> Tables<'c> {
                     }
                     c = to;
                 }
+                end += 1;
             }
+            self.next = end;
+            self.rows[slot] = Row { y, start: start as u16, end: end as u16 };
             fill(table, c, self.stride, end as u16);
         }
     }
