@@ -587,25 +587,28 @@ fn count_row(
     let (Some(events), Some(labels)) = (events.get(start..end), labels.get_mut(start..end)) else {
         return (0, 0);
     };
-    // Events of one pixel share their neighbourhood.
-    let (mut last_x, mut core) = (usize::MAX, false);
-    for (k, (e, l)) in events.iter().zip(labels.iter_mut()).enumerate() {
+    // Events of one pixel share their neighbourhood. Each label is the event's index and the
+    // pixel's mark (`CORE` or 0).
+    let (mut last_x, mut mark) = (usize::MAX, 0u16);
+    let mut label = start as u16;
+    for (e, l) in events.iter().zip(labels.iter_mut()) {
         let x = usize::from(e.x.wrapping_sub(min_x));
         if x != last_x {
             last_x = x;
             let (mut count, mut used) = (0, near.len());
+            mark = 0;
             for (i, nr) in near.iter().enumerate() {
                 count += t.at(nr.hi + x).wrapping_sub(t.at(nr.lo + x));
                 if count >= min_pts {
-                    used = i + 1;
+                    (mark, used) = (CORE, i + 1);
                     break;
                 }
             }
             queries = queries.wrapping_add(used as u32);
-            core = count >= min_pts;
         }
-        cores += u16::from(core);
-        *l = (start + k) as u16 | if core { CORE } else { 0 };
+        cores += mark >> 15;
+        *l = label | mark;
+        label = label.wrapping_add(1);
     }
     (cores, queries)
 }
