@@ -428,6 +428,10 @@ const NO_ROW: u32 = u32::MAX;
 const CELL_BITS: u32 = 13;
 const _: () = assert!(TABLE_CELLS <= 1 << CELL_BITS);
 
+/// The column of no core point in [`Clusterer::link_row`]: any column is further from it than
+/// any neighbourhood reaches.
+const FAR_COLUMN: u32 = 0x8000_0000;
+
 /// A row within reach in [`Tables`]: the offsets in the cells of the lookups for an event at
 /// column offset 0 (the span's start and one past its end).
 #[derive(Clone, Copy, Default)]
@@ -844,9 +848,11 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         (s0, gap): (u16, u16),
     ) -> u32 {
         let mut queries = 0u32;
-        // The previous core point and its column; the run's first core point and column.
-        let (mut prev, mut prev_x) = (usize::MAX, 0u16);
-        let (mut first, mut first_x) = (usize::MAX, 0u16);
+        // The previous core point and its column (none yet: a column as far as a column can
+        // be from every other); the run's first core point and column.
+        let (mut prev, mut prev_x) = (0usize, FAR_COLUMN);
+        let (mut first, mut first_x) = (usize::MAX, 0u32);
+        let (s0, gap) = (u32::from(s0), u32::from(gap));
         let above = near.get(..above).unwrap_or(&[]);
         let end = usize::from(row.end).min(events.len()).min(N);
         for k in usize::from(row.start)..end {
@@ -864,26 +870,26 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 self.labels[k] = best;
                 continue;
             }
-            if prev == usize::MAX {
+            let ex = u32::from(ex);
+            let step = ex.wrapping_sub(prev_x);
+            if step <= s0 {
+                // `union(prev, k)`: no link has reached `k` yet (only rows above and points
+                // before it in its row have been linked), so it is its own root.
+                let parent = self.labels.get(prev).map_or(0, |&l| l & MASK);
+                self.labels[k] = CORE | parent;
+            }
+            if step > gap {
+                if first != usize::MAX {
+                    let cols = (first_x as u16, prev_x as u16);
+                    queries = queries.wrapping_add(self.link_run(events, t, above, first, cols, min_x, s0 as u16));
+                }
                 (first, first_x) = (k, ex);
-            } else {
-                let step = ex.wrapping_sub(prev_x);
-                if step <= s0 {
-                    // `union(prev, k)`: no link has reached `k` yet (only rows above and
-                    // points before it in its row have been linked), so it is its own root.
-                    let parent = self.labels.get(prev).map_or(0, |&l| l & MASK);
-                    self.labels[k] = CORE | parent;
-                }
-                if step > gap {
-                    queries =
-                        queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
-                    (first, first_x) = (k, ex);
-                }
             }
             (prev, prev_x) = (k, ex);
         }
         if first != usize::MAX {
-            queries = queries.wrapping_add(self.link_run(events, t, above, first, (first_x, prev_x), min_x, s0));
+            let cols = (first_x as u16, prev_x as u16);
+            queries = queries.wrapping_add(self.link_run(events, t, above, first, cols, min_x, s0 as u16));
         }
         queries
     }
