@@ -1119,13 +1119,17 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     fn number(&mut self, n: usize, stats: &mut ClusterStats) {
         let mut clusters: usize = 0;
         let mut found: usize = 0;
-        for i in 0..n {
-            let l = self.labels[i];
+        let labels = &mut self.labels[..n.min(N)];
+        for i in 0..labels.len() {
+            let l = labels[i];
             if l & CORE == 0 {
                 continue;
             }
             let p = usize::from(l & MASK);
-            let label = if p == i {
+            // A parent is below its child, a root its own parent.
+            let label = if p < i {
+                labels[p] & MASK
+            } else {
                 found += 1;
                 if clusters < C {
                     clusters += 1;
@@ -1133,10 +1137,8 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                 } else {
                     DROPPED
                 }
-            } else {
-                self.labels[p] & MASK
             };
-            self.labels[i] = label | CORE;
+            labels[i] = label | CORE;
         }
         self.clusters = clusters;
         stats.clusters = clusters as u16;
