@@ -1149,14 +1149,15 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// point's cluster, or noise, and each core point's label into its cluster (unmarked).
     #[inline(never)]
     fn settle_borders(&mut self, n: usize, stats: &mut ClusterStats) {
-        for i in 0..n {
-            let l = self.labels[i];
+        let labels = &mut self.labels[..n.min(N)];
+        for i in 0..labels.len() {
+            let l = labels[i];
             if l & CORE != 0 {
                 // Border points after this one read its cluster below, marked or not.
-                self.labels[i] = l & MASK;
+                labels[i] = l & MASK;
                 continue;
             }
-            self.labels[i] = match self.labels.get(usize::from(l)).filter(|_| l != NONE) {
+            labels[i] = match labels.get(usize::from(l)).filter(|_| l != NONE) {
                 Some(&core) => core & MASK,
                 None => {
                     stats.noise += 1;
