@@ -216,8 +216,10 @@ pub fn sort_by_pixel(events: &mut [WindowEvent]) {
     }
 }
 
-/// Most distinct columns, and rows, that [`sort_in_time_by_pixel`] counts events in.
+/// Most distinct columns, and rows, that [`sort_in_time_by_pixel`] counts events in (a power
+/// of two).
 const SORT_BUCKETS: usize = 1024;
+const _: () = assert!(SORT_BUCKETS.is_power_of_two());
 
 /// Sorts events that are in time order into [`pixel_order`], as [`sort_by_pixel`] does but
 /// in fewer steps: a stable counting sort by column, then by row, so that the events of a
@@ -263,8 +265,10 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     for b in min_x + 1..=max_x + 1 {
         next[b] = next[b].wrapping_add(next[b - 1]);
     }
+    // Every column and row is below `SORT_BUCKETS` (checked above), a power of two: the masks
+    // keep them as they are and spare the bounds checks.
     for (i, e) in events.iter().enumerate() {
-        let b = &mut next[usize::from(e.x).min(SORT_BUCKETS)];
+        let b = &mut next[usize::from(e.x) & (SORT_BUCKETS - 1)];
         order[usize::from(*b)] = i as u16;
         *b = b.wrapping_add(1);
     }
@@ -275,7 +279,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     }
     for &i in order.iter() {
         let i = usize::from(i);
-        let b = &mut next[usize::from(events[i].y).min(SORT_BUCKETS)];
+        let b = &mut next[usize::from(events[i].y) & (SORT_BUCKETS - 1)];
         pos[i] = *b;
         *b = b.wrapping_add(1);
     }
