@@ -946,8 +946,8 @@ fn ellipse_offset(
     let moments = if tilt { conic_moments::<true> } else { conic_moments::<false> };
     let mut m = [0.0f32; 15];
     if let Some(kept) = last.records {
-        let records = ev.scratch.get_mut(ev.n..).unwrap_or(&mut []).as_flattened_mut();
-        moments(records.get_mut(..kept * RECORD).unwrap_or(&mut []), last, p, scale, &mut m);
+        let records = ev.scratch.get(ev.n..).unwrap_or(&[]).as_flattened();
+        moments(records.get(..kept * RECORD).unwrap_or(&[]), last, p, scale, &mut m);
     } else {
         // The same records, a few at a time, in the same order: the same bits.
         let mut buf = [0.0f32; RECORD * CONIC_CHUNK];
@@ -959,7 +959,7 @@ fn ellipse_offset(
                 } else {
                     weigh::<false>(chunk, at, last.scale, &mut hist, &mut buf)
                 };
-                moments(buf.get_mut(..kept * RECORD).unwrap_or(&mut []), last, p, scale, &mut m);
+                moments(buf.get(..kept * RECORD).unwrap_or(&[]), last, p, scale, &mut m);
             }
         };
         if ev.held {
@@ -1016,17 +1016,18 @@ fn ellipse_offset(
 // exponent, to second order while that change is under 0.25 (a converged step moves a
 // residual by some 0.03 px against σ ≥ 1 px), else it is taken afresh. The positions may
 // stay `last.p`'s: the conic's centre does not depend on the origin, and the velocity's step
-// shears the events by under `STEP_TOLERANCE`.
-// Overwrites `records`, in two loops as `weigh` and `sum_records` for the same reason.
+// shears the events by under `STEP_TOLERANCE`. Without an exponential in the common case
+// the loop keeps its 15 sums in registers, unlike `weigh`'s.
 #[inline(never)]
-fn conic_moments<const TILT: bool>(records: &mut [f32], last: &LastPass, p: &[f32; 5], scale: f32, m: &mut [f32; 15]) {
+fn conic_moments<const TILT: bool>(records: &[f32], last: &LastPass, p: &[f32; 5], scale: f32, m: &mut [f32; 15]) {
     let at = &last.p;
     let [du, dv, da, db, dr] = [p[0] - at[0], p[1] - at[1], p[2] - at[2], p[3] - at[3], p[4] - at[4]];
     let (r0, scale0) = (at[4], last.scale);
     let inv_r0 = 1.0 / r0;
-    let mut n = 0;
-    for i in 0..records.len() / RECORD {
-        let Some(&[w, cx, cy, xi, t]) = records.get(i * RECORD..i * RECORD + RECORD) else { break };
+    let [mut s00, mut s10, mut s01, mut s20, mut s11, mut s02, mut s30, mut s21, mut s12, mut s03, mut s40, mut s31, mut s22, mut s13, mut s04] =
+        *m;
+    for rec in records.chunks_exact(RECORD) {
+        let &[w, cx, cy, xi, t] = rec else { break };
         let (ox, oy) = if TILT { (du + da * t, dv + db * t) } else { (du, dv) };
         let step = -(cx * ox + cy * oy) - dr;
         let xi1 = xi + step;
@@ -1043,18 +1044,7 @@ fn conic_moments<const TILT: bool>(records: &mut [f32], last: &LastPass, p: &[f3
             }
         };
         let k = (xi + r0) * inv_r0;
-        // `3 * i + 3 <= RECORD * i + 3`: the slot is read already.
-        if let Some([sw, sx, sy]) = records.get_mut(3 * i..3 * i + 3) {
-            *sw = w;
-            *sx = cx * k;
-            *sy = cy * k;
-        }
-        n = i + 1;
-    }
-    let [mut s00, mut s10, mut s01, mut s20, mut s11, mut s02, mut s30, mut s21, mut s12, mut s03, mut s40, mut s31, mut s22, mut s13, mut s04] =
-        *m;
-    for rec in records.get(..3 * n).unwrap_or(&[]).chunks_exact(3) {
-        let &[wi, x, y] = rec else { break };
+        let (wi, x, y) = (w, cx * k, cy * k);
         let (wx, wy) = (wi * x, wi * y);
         let (wxx, wxy, wyy) = (wx * x, wx * y, wy * y);
         let (wxxx, wxxy, wxyy, wyyy) = (wxx * x, wxx * y, wxy * y, wyy * y);
