@@ -132,8 +132,10 @@ pub fn fit_from(parts: &[&[WindowEvent]], start: Option<Circle>, t_ref_us: u32, 
 
 /// [`fit_from`] with the caller's scratch for the events' coordinates in the fit's local
 /// frame: a fit of at most `scratch.len()` events converts them once for all its passes, a
-/// larger one converts them again on every pass, `scratch.len()` at a time. The result is
-/// the same, bit for bit, whatever the scratch's size (empty: one event at a time).
+/// larger one converts them again on every pass, `scratch.len()` at a time. An eRWLS fit of
+/// at most 3/8 of `scratch.len()` events also keeps each pass's weights in the rest, for
+/// fewer instructions. The result is the same, bit for bit, whatever the scratch's size
+/// (empty: one event at a time).
 pub fn fit_with(
     parts: &[&[WindowEvent]],
     start: Option<Circle>,
@@ -460,6 +462,19 @@ struct Pass {
     g: [f32; 5],
     sw: f32,
     swe2: f32,
+    /// How many records of the events of nonzero weight [`weigh`] left in the scratch's tail,
+    /// if it did.
+    records: Option<usize>,
+    /// The kernel's `1/2σ²` of the pass.
+    scale: f32,
+}
+
+/// What the ellipse (see [`ellipse_offset`]) needs of a fit's last pass: its parameters,
+/// kernel (`1/2σ²`) and records.
+struct LastPass {
+    p: [f32; 5],
+    scale: f32,
+    records: Option<usize>,
 }
 
 /// A fit's events in its local frame, `[x, y, τ]` as [`Frame::local`] gives them: all of
@@ -547,8 +562,24 @@ fn pass(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist:
         (false, false) => pass_with::<false, false>,
     };
     let mut s = Sums::default();
-    if ev.held {
-        run(ev.scratch.get(..ev.n).unwrap_or(&[]), p, scale, hist, &mut s);
+    let mut made = None;
+    let (held, tail) = ev.scratch.split_at_mut(ev.n.min(ev.scratch.len()));
+    let records = tail.as_flattened_mut();
+    if ev.held && w.reweight && records.len() >= RECORD * ev.n {
+        let kept = if tilt {
+            weigh::<true>(held, p, scale, hist, records)
+        } else {
+            weigh::<false>(held, p, scale, hist, records)
+        };
+        made = Some(kept);
+        let records = records.get(..kept * RECORD).unwrap_or(&[]);
+        if tilt {
+            sum_records::<true>(records, &mut s);
+        } else {
+            sum_records::<false>(records, &mut s);
+        }
+    } else if ev.held {
+        run(held, p, scale, hist, &mut s);
     } else {
         let mut at = (0, 0);
         loop {
@@ -567,7 +598,7 @@ fn pass(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist:
         [s.sxyt, s.syyt, s.sxytt, s.syytt, 0.0],
         [s.sx, s.sy, s.sxt, s.syt, s.sw],
     ];
-    Pass { a, g: [-s.gx, -s.gy, -s.gxt, -s.gyt, -s.g1], sw: s.sw, swe2: s.swe2 }
+    Pass { a, g: [-s.gx, -s.gy, -s.gxt, -s.gyt, -s.g1], sw: s.sw, swe2: s.swe2, records: made, scale }
 }
 
 /// One pass's sums over `events` (local `[x, y, τ]`), added to `s`.
@@ -661,6 +692,118 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
         Sums { sxx, sxy, syy, sxxt, sxyt, syyt, sxxtt, sxytt, syytt, sx, sy, sxt, syt, sw, gx, gy, gxt, gyt, g1, swe2 };
 }
 
+/// Floats of one event's record from [`weigh`] for [`sum_records`]: its weight, unit direction
+/// from the centre, residual and time.
+const RECORD: usize = 5;
+
+/// The first half of a reweighted pass over `events` (local `[x, y, τ]`): each event's
+/// residual into `hist`, and for each event of nonzero weight its record
+/// `[w, cx, cy, ξ, τ]` (τ of tilted fits only) packed into `records` while there is room;
+/// returns how many.
+// In one loop (`pass_with`), the 20 sums, the centre, the kernel and the exponential's
+// constants outgrew the M4F's 32 float registers and spilled a dozen times an event; split,
+// neither loop spills, for a record's five stores and loads, and the records serve the
+// ellipse (see `ellipse_offset`). The sums are `pass_with`'s operations in its order.
+#[inline(never)]
+fn weigh<const TILT: bool>(
+    events: &[[f32; 3]],
+    p: &[f32; 5],
+    scale: f32,
+    hist: &mut Histogram,
+    records: &mut [f32],
+) -> usize {
+    let [u, v, va, vb, r] = *p;
+    let mut out = records.chunks_exact_mut(RECORD);
+    let mut kept = 0;
+    for &[x, y, t] in events {
+        let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
+        let q = dx * dx + dy * dy;
+        // NaN compares false: `q > 0` and finite below.
+        if q.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            hist.add(r.abs());
+            continue; // on the axis: no direction, no information about the centre
+        }
+        let inv = inv_sqrt(q);
+        let d = q * inv;
+        let xi = d - r;
+        hist.add(xi.abs());
+        let z = xi * xi * scale;
+        if z > MAX_WEIGHT_EXPONENT {
+            continue;
+        }
+        if let Some([rw, rx, ry, rxi, rt]) = out.next() {
+            *rw = exp_neg(z);
+            *rx = dx * inv;
+            *ry = dy * inv;
+            *rxi = xi;
+            if TILT {
+                *rt = t;
+            }
+            kept += 1;
+        }
+    }
+    kept
+}
+
+/// The second half of a reweighted pass: the sums of `pass_with` over [`weigh`]'s records,
+/// added to `s`.
+#[inline(never)]
+fn sum_records<const TILT: bool>(records: &[f32], s: &mut Sums) {
+    let Sums {
+        mut sxx,
+        mut sxy,
+        mut syy,
+        mut sxxt,
+        mut sxyt,
+        mut syyt,
+        mut sxxtt,
+        mut sxytt,
+        mut syytt,
+        mut sx,
+        mut sy,
+        mut sxt,
+        mut syt,
+        mut sw,
+        mut gx,
+        mut gy,
+        mut gxt,
+        mut gyt,
+        mut g1,
+        mut swe2,
+    } = *s;
+    for rec in records.chunks_exact(RECORD) {
+        let &[wi, cx, cy, xi, t] = rec else { break };
+        let (wx, wy) = (wi * cx, wi * cy);
+        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
+        sxx += wxx;
+        sxy += wxy;
+        syy += wyy;
+        sx += wx;
+        sy += wy;
+        sw += wi;
+        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
+        gx += wxxi;
+        gy += wyxi;
+        g1 += wxi;
+        swe2 += wxi * xi;
+        if TILT {
+            sxxt += wxx * t;
+            sxyt += wxy * t;
+            syyt += wyy * t;
+            let tt = t * t;
+            sxxtt += wxx * tt;
+            sxytt += wxy * tt;
+            syytt += wyy * tt;
+            sxt += wx * t;
+            syt += wy * t;
+            gxt += wxxi * t;
+            gyt += wyxi * t;
+        }
+    }
+    *s =
+        Sums { sxx, sxy, syy, sxxt, sxyt, syyt, sxxtt, sxytt, syytt, sx, sy, sxt, syt, sw, gx, gy, gxt, gyt, g1, swe2 };
+}
+
 /// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
 /// (one pass over the events per iteration: weights from the residuals at the current
 /// parameters, the weighted normal equations, one step). The kernel width follows the
@@ -689,8 +832,10 @@ fn cylinder(
     let mut spread = f32::INFINITY;
     let mut it = 0usize;
     let mut hist = Histogram::new();
+    let mut last = LastPass { p, scale: 0.0, records: None };
     while it < usize::from(cfg.max_iterations) {
         let ps = pass(events, f, &p, &w, tilt, &mut hist);
+        last = LastPass { p, scale: ps.scale, records: ps.records };
         if ps.sw > 0.0 {
             spread = sqrt(ps.swe2 / ps.sw);
         }
@@ -739,10 +884,11 @@ fn cylinder(
         }
         it += 1;
     }
+    // `spread` is finite only after a pass, which sets `last`.
     if reweight && spread <= ELLIPSE_MAX_SPREAD {
-        if let Some([du, dv]) = ellipse_offset(events, f, &p, &w) {
-            p[0] += du;
-            p[1] += dv;
+        if let Some([du, dv]) = ellipse_offset(events, f, &last, &p, 0.5 / (w.sigma * w.sigma), tilt) {
+            p[0] = last.p[0] + du;
+            p[1] = last.p[1] + dv;
         }
     }
     Some(Local { p, spread, converged })
@@ -761,98 +907,170 @@ const MAX_ELLIPSE_OFFSET: f32 = 0.15;
 /// their ratio's square): below it the conic is no tilted circle's image.
 const MIN_ELLIPSE_AXIS_RATIO_SQ: f32 = 0.25;
 
-/// One pass's sums for [`ellipse_offset`] over `events` (local `[x, y, τ]`), added to `s`:
-/// the lower triangle of ZᵀWZ (row by row) and then ZᵀW(−y²), for rows
-/// Z = (x² − y², xy, x, y, 1) in radii about the moving centre. Overwrites `events` (the
-/// fit's last pass over them).
-// Out of line, as `pass_with`. In two loops: the first leaves each kept event's weight and
-// position in radii in its place (packed to the front), the second sums them. In one loop,
-// the 20 sums with the centre, the kernel and the constants of the weight outgrew the M4F's
-// 32 float registers, and their spills and register shuffles were a third of the pass; the
-// second loop needs none, and the sums are the same operations in the same order.
-#[inline(never)]
-fn conic_pass(events: &mut [[f32; 3]], p: &[f32; 5], inv_r: f32, scale: f32, s: &mut [f32; 20]) {
-    let [u, v, va, vb, r] = *p;
-    let mut kept = 0;
-    for i in 0..events.len() {
-        let Some(&[x, y, t]) = events.get(i) else { break };
-        let (dx, dy) = (x - u - va * t, y - v - vb * t);
-        let q = dx * dx + dy * dy;
-        let xi = q * inv_sqrt(q) - r;
-        let z = xi * xi * scale;
-        // One comparison: a NaN (an event on the centre) is unordered and passed over too.
-        if z.partial_cmp(&MAX_WEIGHT_EXPONENT).is_none_or(|o| o.is_gt()) {
-            continue;
-        }
-        // `kept <= i`: the slot is one read already.
-        if let Some(slot) = events.get_mut(kept) {
-            *slot = [exp_neg(z), dx * inv_r, dy * inv_r];
-        }
-        kept += 1;
-    }
-    let [mut m00, mut m10, mut m11, mut m20, mut m21, mut m22, mut m30, mut m31, mut m32, mut m33, mut m40, mut m41, mut m42, mut m43, mut m44, mut b0, mut b1, mut b2, mut b3, mut b4] =
-        *s;
-    for &[wi, x, y] in events.get(..kept).unwrap_or(&[]) {
-        let (xx, yy) = (x * x, y * y);
-        let z0 = xx - yy;
-        let z1 = x * y;
-        let (w0, w1, w2, w3) = (wi * z0, wi * z1, wi * x, wi * y);
-        m00 += w0 * z0;
-        m10 += w1 * z0;
-        m11 += w1 * z1;
-        m20 += w2 * z0;
-        m21 += w2 * z1;
-        m22 += w2 * x;
-        m30 += w3 * z0;
-        m31 += w3 * z1;
-        m32 += w3 * x;
-        m33 += w3 * y;
-        m40 += w0;
-        m41 += w1;
-        m42 += w2;
-        m43 += w3;
-        m44 += wi;
-        b0 -= w0 * yy;
-        b1 -= w1 * yy;
-        b2 -= w2 * yy;
-        b3 -= w3 * yy;
-        b4 -= wi * yy;
-    }
-    *s = [m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, m40, m41, m42, m43, m44, b0, b1, b2, b3, b4];
-}
+/// Records [`ellipse_offset`] makes at a time when the last pass left none (a reweighted
+/// fit held whole, with room for its records in the rest of the scratch, leaves them; see
+/// [`pass`]).
+const CONIC_CHUNK: usize = 16;
 
-/// The offset from the fitted circle's centre to the centre of the ellipse through the same
-/// events, in the local frame, or `None` when the conic is no plausible ellipse.
+/// The offset, in the local frame, from the centre of the fit's last pass (`last.p`) to the
+/// centre of the ellipse through the same events, weighed as the fit's final parameters `p`
+/// and kernel (`scale`, `1/2σ²`) weigh them, or `None` when the conic is no plausible ellipse.
 ///
 /// A tilted circle's image is an ellipse, and a circle fitted to an ellipse sits at the
 /// ellipse's centre only when the events weigh opposite sides alike. They do not: a pixel
 /// fires as often as the edge crosses it, and under perspective the nearer side of a tilted
 /// circle moves faster across the sensor than the farther one. The offset lies along the
 /// tilt, which is what fixes the focal length, and on simulated spiral recordings it read as
-/// fx 0.08–0.13 % long. One more pass over the events, with the fit's last weights and the
-/// cylinder's velocity taken out, fits the conic `A x² + B xy + (1 − A) y² + D x + E y + F =
-/// 0` (in radii about the circle's centre; the normalisation excludes no ellipse near a
-/// circle) by weighted algebraic least squares, and its centre is the ellipse's.
-fn ellipse_offset(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights) -> Option<[f32; 2]> {
-    let r = p[4];
+/// fx 0.08–0.13 % long. With the fit's weights and the cylinder's velocity taken out, the
+/// conic `A x² + B xy + (1 − A) y² + D x + E y + F = 0` (in radii about the circle's centre;
+/// the normalisation excludes no ellipse near a circle) is fitted by weighted algebraic least
+/// squares, and its centre is the ellipse's.
+///
+/// The events come from the last pass's records (see [`weigh`]; a fit without them makes
+/// the same ones again, a few at a time), which spares the conic the square root and
+/// distance of a pass over the events of its own: it had been a sixth of the slowest
+/// windows' fitting.
+fn ellipse_offset(
+    ev: &mut Events,
+    f: &Frame,
+    last: &LastPass,
+    p: &[f32; 5],
+    scale: f32,
+    tilt: bool,
+) -> Option<[f32; 2]> {
+    let r = last.p[4];
     if r.partial_cmp(&0.5) != Some(core::cmp::Ordering::Greater) {
         return None;
     }
-    let inv_r = 1.0 / r;
-    let scale = 0.5 / (w.sigma * w.sigma);
-    let mut s = [0.0f32; 20];
-    if ev.held {
-        conic_pass(ev.scratch.get_mut(..ev.n).unwrap_or(&mut []), p, inv_r, scale, &mut s);
+    let at = &last.p;
+    let moments = if tilt { conic_moments::<true> } else { conic_moments::<false> };
+    let mut m = [0.0f32; 15];
+    if let Some(kept) = last.records {
+        let records = ev.scratch.get(ev.n..).unwrap_or(&[]).as_flattened();
+        moments(records.get(..kept * RECORD).unwrap_or(&[]), last, p, scale, &mut m);
     } else {
-        let mut at = (0, 0);
-        loop {
-            let k = ev.convert(f, &mut at);
-            if k == 0 {
-                break;
+        // The same records, a few at a time, in the same order: the same bits.
+        let mut buf = [0.0f32; RECORD * CONIC_CHUNK];
+        let mut hist = Histogram::new();
+        let mut add = |events: &[[f32; 3]]| {
+            for chunk in events.chunks(CONIC_CHUNK) {
+                let kept = if tilt {
+                    weigh::<true>(chunk, at, last.scale, &mut hist, &mut buf)
+                } else {
+                    weigh::<false>(chunk, at, last.scale, &mut hist, &mut buf)
+                };
+                moments(buf.get(..kept * RECORD).unwrap_or(&[]), last, p, scale, &mut m);
             }
-            conic_pass(ev.scratch.get_mut(..k).unwrap_or(&mut []), p, inv_r, scale, &mut s);
+        };
+        if ev.held {
+            add(ev.scratch.get(..ev.n).unwrap_or(&[]));
+        } else {
+            let mut at = (0, 0);
+            loop {
+                let k = ev.convert(f, &mut at);
+                if k == 0 {
+                    break;
+                }
+                add(ev.scratch.get(..k).unwrap_or(&[]));
+            }
         }
     }
+    let [s00, s10, s01, s20, s11, s02, s30, s21, s12, s03, s40, s31, s22, s13, s04] = m;
+    // The normal equations' lower triangle, row by row, and right-hand side, for rows
+    // Z = (x² − y², xy, x, y, 1) and the target −y².
+    let s = [
+        s40 - 2.0 * s22 + s04,
+        s31 - s13,
+        s22,
+        s30 - s12,
+        s21,
+        s20,
+        s21 - s03,
+        s12,
+        s11,
+        s02,
+        s20 - s02,
+        s11,
+        s10,
+        s01,
+        s00,
+        s04 - s22,
+        -s13,
+        -s12,
+        -s03,
+        -s02,
+    ];
+    ellipse_centre(s, r)
+}
+
+/// The weighted moments `Σ w xⁱ yʲ`, `i + j ≤ 4`, added to `m`, of the events of [`weigh`]'s
+/// records of the pass at `last.p` (positions in radii about its circle), weighed by their
+/// residuals from the circle `p`, the step after that pass: `[S00, S10, S01, S20, S11, S02,
+/// S30, S21, S12, S03, S40, S31, S22, S13, S04]`. Every sum of the conic's normal equations
+/// is one of them or a difference of two or three: 14 products an event, where the 20 sums
+/// took 24.
+// The weights must be `p`'s: weighed at `last.p`, the conic is off by the step as much as the
+// circle is (IRLS converges linearly; 0.0012 px more centre RMS on the DAVIS346 cone). A
+// residual moves by the step along the event's direction (to first order: the step turns the
+// direction by a few thousandths of a radian, 1e-4 px), and the weight by the change of its
+// exponent, to second order while that change is under 0.25 (a converged step moves a
+// residual by some 0.03 px against σ ≥ 1 px), else it is taken afresh. The positions may
+// stay `last.p`'s: the conic's centre does not depend on the origin, and the velocity's step
+// shears the events by under `STEP_TOLERANCE`. Without an exponential in the common case
+// the loop keeps its 15 sums in registers, unlike `weigh`'s.
+#[inline(never)]
+fn conic_moments<const TILT: bool>(records: &[f32], last: &LastPass, p: &[f32; 5], scale: f32, m: &mut [f32; 15]) {
+    let at = &last.p;
+    let [du, dv, da, db, dr] = [p[0] - at[0], p[1] - at[1], p[2] - at[2], p[3] - at[3], p[4] - at[4]];
+    let (r0, scale0) = (at[4], last.scale);
+    let inv_r0 = 1.0 / r0;
+    let [mut s00, mut s10, mut s01, mut s20, mut s11, mut s02, mut s30, mut s21, mut s12, mut s03, mut s40, mut s31, mut s22, mut s13, mut s04] =
+        *m;
+    for rec in records.chunks_exact(RECORD) {
+        let &[w, cx, cy, xi, t] = rec else { break };
+        let (ox, oy) = if TILT { (du + da * t, dv + db * t) } else { (du, dv) };
+        let step = -(cx * ox + cy * oy) - dr;
+        let xi1 = xi + step;
+        let dz = scale * xi1 * xi1 - scale0 * xi * xi;
+        let w = if dz.abs() <= 0.25 {
+            w * (1.0 - dz * (1.0 - 0.5 * dz))
+        } else {
+            let z = xi1 * xi1 * scale;
+            // One comparison: a NaN is unordered and weighs nothing too.
+            if z.partial_cmp(&MAX_WEIGHT_EXPONENT).is_none_or(|o| o.is_gt()) {
+                0.0
+            } else {
+                exp_neg(z)
+            }
+        };
+        let k = (xi + r0) * inv_r0;
+        let (wi, x, y) = (w, cx * k, cy * k);
+        let (wx, wy) = (wi * x, wi * y);
+        let (wxx, wxy, wyy) = (wx * x, wx * y, wy * y);
+        let (wxxx, wxxy, wxyy, wyyy) = (wxx * x, wxx * y, wxy * y, wyy * y);
+        s00 += wi;
+        s10 += wx;
+        s01 += wy;
+        s20 += wxx;
+        s11 += wxy;
+        s02 += wyy;
+        s30 += wxxx;
+        s21 += wxxy;
+        s12 += wxyy;
+        s03 += wyyy;
+        s40 += wxxx * x;
+        s31 += wxxx * y;
+        s22 += wxxy * y;
+        s13 += wxyy * y;
+        s04 += wyyy * y;
+    }
+    *m = [s00, s10, s01, s20, s11, s02, s30, s21, s12, s03, s40, s31, s22, s13, s04];
+}
+
+/// The centre, in the local frame about the fitted circle's, of the conic whose normal
+/// equations (see [`ellipse_offset`]) are `s`, for a circle of radius `r`; `None` for no
+/// plausible ellipse.
+fn ellipse_centre(s: [f32; 20], r: f32) -> Option<[f32; 2]> {
     let [m00, m10, m11, m20, m21, m22, m30, m31, m32, m33, m40, m41, m42, m43, m44, b0, b1, b2, b3, b4] = s;
     let m = [
         [m00, 0.0, 0.0, 0.0, 0.0],

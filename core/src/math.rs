@@ -81,7 +81,9 @@ pub(crate) fn exp_neg(z: f32) -> f32 {
     // and for an integer m (g = 1) the polynomial gives exactly 2, so that the result is
     // exactly 2^(−m) either way; no comparison is needed to correct a truncation.
     let k = m as i32;
-    let g = (k + 1) as f32 - m;
+    // k + 1 added as a float (exactly, k being small): the integer k converted back from its
+    // float register, where (k + 1) as f32 took it through a core register and back.
+    let g = (k as f32 + 1.0) - m;
     // 2^g on [0, 1]: a degree-4 polynomial fitted to it for the least largest relative error
     // (3.5e-6) with p(0) = 1 and p(1) = 2 (exactly, in f32), so that the pieces join at the
     // integers.
