@@ -548,6 +548,41 @@ struct Sums {
     swe2: f32,
 }
 
+impl Sums {
+    /// Adds one event of weight `wi`, unit direction (`cx`, `cy`) from the centre, residual
+    /// `xi` and time `t`. Inlined into each pass's loop, where the sums of a local copy stay
+    /// in registers.
+    #[inline(always)]
+    fn add<const TILT: bool>(&mut self, wi: f32, cx: f32, cy: f32, xi: f32, t: f32) {
+        let (wx, wy) = (wi * cx, wi * cy);
+        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
+        self.sxx += wxx;
+        self.sxy += wxy;
+        self.syy += wyy;
+        self.sx += wx;
+        self.sy += wy;
+        self.sw += wi;
+        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
+        self.gx += wxxi;
+        self.gy += wyxi;
+        self.g1 += wxi;
+        self.swe2 += wxi * xi;
+        if TILT {
+            self.sxxt += wxx * t;
+            self.sxyt += wxy * t;
+            self.syyt += wyy * t;
+            let tt = t * t;
+            self.sxxtt += wxx * tt;
+            self.sxytt += wxy * tt;
+            self.syytt += wyy * tt;
+            self.sxt += wx * t;
+            self.syt += wy * t;
+            self.gxt += wxxi * t;
+            self.gyt += wyxi * t;
+        }
+    }
+}
+
 fn pass(ev: &mut Events, f: &Frame, p: &[f32; 5], w: &Weights, tilt: bool, hist: &mut Histogram) -> Pass {
     *hist = Histogram::new();
     hist.count = ev.n as u32;
@@ -616,29 +651,8 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
     let [u, v, va, vb, r] = *p;
     // J = −(cx, cy, cx·τ, cy·τ, 1) for the unit direction (cx, cy) from the centre: JᵀWJ is
     // made of the weighted sums of cx², cx·cy, cy² times 1, τ, τ², of cx, cy times 1, τ, and
-    // of w; JᵀWξ of wξ times cx, cy, cx·τ, cy·τ, 1. Locals keep all of them in registers.
-    let Sums {
-        mut sxx,
-        mut sxy,
-        mut syy,
-        mut sxxt,
-        mut sxyt,
-        mut syyt,
-        mut sxxtt,
-        mut sxytt,
-        mut syytt,
-        mut sx,
-        mut sy,
-        mut sxt,
-        mut syt,
-        mut sw,
-        mut gx,
-        mut gy,
-        mut gxt,
-        mut gyt,
-        mut g1,
-        mut swe2,
-    } = *s;
+    // of w; JᵀWξ of wξ times cx, cy, cx·τ, cy·τ, 1. A local copy keeps them all in registers.
+    let mut acc = *s;
     for &[x, y, t] in events {
         let (dx, dy) = if TILT { (x - u - va * t, y - v - vb * t) } else { (x - u, y - v) };
         let q = dx * dx + dy * dy;
@@ -661,35 +675,9 @@ fn pass_with<const TILT: bool, const REWEIGHT: bool>(
             1.0
         };
         let (cx, cy) = (dx * inv, dy * inv);
-        let (wx, wy) = (wi * cx, wi * cy);
-        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
-        sxx += wxx;
-        sxy += wxy;
-        syy += wyy;
-        sx += wx;
-        sy += wy;
-        sw += wi;
-        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
-        gx += wxxi;
-        gy += wyxi;
-        g1 += wxi;
-        swe2 += wxi * xi;
-        if TILT {
-            sxxt += wxx * t;
-            sxyt += wxy * t;
-            syyt += wyy * t;
-            let tt = t * t;
-            sxxtt += wxx * tt;
-            sxytt += wxy * tt;
-            syytt += wyy * tt;
-            sxt += wx * t;
-            syt += wy * t;
-            gxt += wxxi * t;
-            gyt += wyxi * t;
-        }
+        acc.add::<TILT>(wi, cx, cy, xi, t);
     }
-    *s =
-        Sums { sxx, sxy, syy, sxxt, sxyt, syyt, sxxtt, sxytt, syytt, sx, sy, sxt, syt, sw, gx, gy, gxt, gyt, g1, swe2 };
+    *s = acc;
 }
 
 /// Floats of one event's record from [`weigh`] for [`sum_records`]: its weight, unit direction
@@ -749,59 +737,12 @@ fn weigh<const TILT: bool>(
 /// added to `s`.
 #[inline(never)]
 fn sum_records<const TILT: bool>(records: &[f32], s: &mut Sums) {
-    let Sums {
-        mut sxx,
-        mut sxy,
-        mut syy,
-        mut sxxt,
-        mut sxyt,
-        mut syyt,
-        mut sxxtt,
-        mut sxytt,
-        mut syytt,
-        mut sx,
-        mut sy,
-        mut sxt,
-        mut syt,
-        mut sw,
-        mut gx,
-        mut gy,
-        mut gxt,
-        mut gyt,
-        mut g1,
-        mut swe2,
-    } = *s;
+    let mut acc = *s;
     for rec in records.chunks_exact(RECORD) {
         let &[wi, cx, cy, xi, t] = rec else { break };
-        let (wx, wy) = (wi * cx, wi * cy);
-        let (wxx, wxy, wyy) = (wx * cx, wx * cy, wy * cy);
-        sxx += wxx;
-        sxy += wxy;
-        syy += wyy;
-        sx += wx;
-        sy += wy;
-        sw += wi;
-        let (wxi, wxxi, wyxi) = (wi * xi, wx * xi, wy * xi);
-        gx += wxxi;
-        gy += wyxi;
-        g1 += wxi;
-        swe2 += wxi * xi;
-        if TILT {
-            sxxt += wxx * t;
-            sxyt += wxy * t;
-            syyt += wyy * t;
-            let tt = t * t;
-            sxxtt += wxx * tt;
-            sxytt += wxy * tt;
-            syytt += wyy * tt;
-            sxt += wx * t;
-            syt += wy * t;
-            gxt += wxxi * t;
-            gyt += wyxi * t;
-        }
+        acc.add::<TILT>(wi, cx, cy, xi, t);
     }
-    *s =
-        Sums { sxx, sxy, syy, sxxt, sxyt, syyt, sxxtt, sxytt, syytt, sx, sy, sxt, syt, sw, gx, gy, gxt, gyt, g1, swe2 };
+    *s = acc;
 }
 
 /// The slanted-cylinder fit: the algebraic start, then iteratively reweighted Gauss–Newton
