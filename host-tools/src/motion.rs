@@ -22,7 +22,7 @@
 //! final solve then runs on centres moved forward by `δ`.
 
 use crate::calib::{self, board_key, View};
-use crate::export::{view_residuals, ViewOrigin};
+use crate::export::ViewOrigin;
 use serde::{Deserialize, Serialize};
 
 /// Neighbouring windows further apart than this do not give a direction of motion: a hand
@@ -167,7 +167,7 @@ fn trimmed(views: &[View], dirs: &[Vec<[f64; 2]>], cal: &calib::Calibration) -> 
     for r in &cal.views {
         let (Some(v), Some(d)) = (views.get(r.view), dirs.get(r.view)) else { continue };
         let (mut view, mut dir) = (View { object: Vec::new(), image: Vec::new() }, Vec::new());
-        let residuals = view_residuals(v, &cal.intrinsics, r);
+        let residuals = cal.residuals(v, r);
         for (((o, m), d), e) in v.object.iter().zip(&v.image).zip(d).zip(residuals) {
             // A point behind the camera has a NaN residual: it is left out too.
             if e[0].hypot(e[1]) <= limit {

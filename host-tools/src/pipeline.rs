@@ -41,6 +41,11 @@ pub struct Setup {
     /// Measure how far the centres trail their circles along the motion and solve on
     /// centres moved back by that much ([`motion`]).
     pub edge_shift: bool,
+    /// Radius of the board's circles, metres, when known; `None` to estimate it from the
+    /// fitted radii ([`Views::circle_radius_m`]). The solve models where each circle's
+    /// outline centre lies ([`calib::Options::circle_radius`]); `calib.circle_radius`, when
+    /// set, wins over both.
+    pub circle_radius: Option<f64>,
 }
 
 impl Setup {
@@ -56,6 +61,7 @@ impl Setup {
             calib: calib::Options::default(),
             edge_margin_px: 1.0,
             edge_shift: true,
+            circle_radius: None,
         }
     }
 }
@@ -123,6 +129,10 @@ pub struct Views {
     pub timeline: Vec<WindowSample>,
     /// The grid finder's tally.
     pub stats: GridStats,
+    /// The board's circle radius as the views show it, metres: the median over every point
+    /// of the solvable views of its fitted radius over the local scale of its view's
+    /// homography (pixels per metre there). `None` without such views.
+    pub circle_radius_m: Option<f64>,
 }
 
 /// The grid of one window as a view, with points at the sensor's border left out; also
@@ -177,6 +187,7 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
     };
     let t0 = windows.first().map_or(0, |w| w.t_ref_us);
     let mut out = Views::default();
+    let mut radii = Vec::new();
     out.stats.windows = windows.len();
     let needed = calib::MIN_POINTS_PER_VIEW;
     // The finder's own minimum, as it counts it.
@@ -196,6 +207,9 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
         let grid_found = match r {
             Ok(g) => {
                 out.stats.found += 1;
+                if !partial {
+                    radii.extend(radii_of(&g, &setup.pattern));
+                }
                 let (view, at_edge) = view_of(&g, setup);
                 out.stats.points_at_edge += at_edge;
                 if view.object.len() >= needed {
@@ -214,7 +228,50 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
         };
         out.timeline.push(WindowSample { t_s, centres: w.centers.len(), grid_found });
     }
+    out.circle_radius_m = median(&mut radii);
     out
+}
+
+/// Each point's circle radius in metres, as `grid` shows it: its fitted radius (px) over the
+/// local scale of the homography from the board to the image (px per metre at the point).
+/// Empty when no homography fits. Circle fits run short of the true radius by a few tenths
+/// of a pixel (a DVS pixel fires once the log intensity has moved by a threshold, inside a
+/// blurred edge), which the outline offsets feel squared: a 5 % short radius leaves 10 % of
+/// the offsets, a few thousandths of a pixel.
+fn radii_of(grid: &GridDetection, pattern: &Pattern) -> Vec<f64> {
+    let object: Vec<[f64; 2]> = grid
+        .points
+        .iter()
+        .map(|p| {
+            let o = pattern.object_point(p.index);
+            [o[0], o[1]]
+        })
+        .collect();
+    let image: Vec<[f64; 2]> = grid.points.iter().map(|p| p.image).collect();
+    let Some(h) = calib::fit_homography(&object, &image) else { return Vec::new() };
+    object
+        .iter()
+        .zip(&grid.points)
+        .filter_map(|(&[x, y], p)| {
+            // The Jacobian of (u, v) = (h0 x + h1 y + h2, h3 x + h4 y + h5) / (h6 x + h7 y + h8).
+            let w = h[6] * x + h[7] * y + h[8];
+            let (u, v) = ((h[0] * x + h[1] * y + h[2]) / w, (h[3] * x + h[4] * y + h[5]) / w);
+            let j = [(h[0] - u * h[6]) / w, (h[1] - u * h[7]) / w, (h[3] - v * h[6]) / w, (h[4] - v * h[7]) / w];
+            let scale = (j[0] * j[3] - j[1] * j[2]).abs().sqrt();
+            let r = p.radius_px / scale;
+            (r.is_finite() && r > 0.0).then_some(r)
+        })
+        .collect()
+}
+
+/// The median of `x` (reordered), `None` when empty.
+fn median(x: &mut [f64]) -> Option<f64> {
+    if x.is_empty() {
+        return None;
+    }
+    let mid = x.len() / 2;
+    let (_, m, _) = x.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(*m)
 }
 
 /// A calibration and what stands behind it.
@@ -240,6 +297,9 @@ pub struct Outcome {
     pub coverage: Coverage,
     /// What the user should know about the views, and what motion would help.
     pub advice: Vec<String>,
+    /// Why the result is no calibration at all, when the views leave a parameter so loose
+    /// that no value printed could be trusted ([`verdict`]); `None` for a calibration.
+    pub failure: Option<String>,
 }
 
 /// Why no calibration came out.
@@ -272,6 +332,12 @@ fn solvable(views: &Views) -> Vec<usize> {
     (0..views.views.len()).filter(|&i| !views.partial.get(i).copied().unwrap_or(false)).collect()
 }
 
+/// Views within a stretch of this many seconds of the recording form one group for the
+/// standard deviations ([`calib::Options::view_groups`]). A centre's error persists while
+/// the motion and the light it sees change little: far longer than a window (33 ms) or the
+/// smoothing's reach (70 ms); half a second still leaves 8 groups in 4 s of recording.
+pub const GROUP_SECONDS: f64 = 0.5;
+
 /// Chooses among `views` and solves.
 pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, PipelineError> {
     if views.views.is_empty() {
@@ -292,6 +358,9 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     selection.chosen = selection.chosen.iter().map(|&j| offered[j]).collect();
     let mut used: Vec<View> = selection.chosen.iter().map(|&i| all_views[i].clone()).collect();
     let used_origins: Vec<ViewOrigin> = selection.chosen.iter().map(|&i| views.origins[i]).collect();
+    let mut calib_opts = setup.calib.clone();
+    calib_opts.circle_radius = calib_opts.circle_radius.or(setup.circle_radius).or(views.circle_radius_m);
+    let setup = &Setup { calib: calib_opts, ..setup.clone() };
     let mut edge_shift = None;
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
@@ -302,18 +371,84 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
             used = motion::shifted(&used, &dirs, s.px);
         }
     }
-    let calibration = calib::calibrate(&used, setup.image_size, &setup.calib).map_err(PipelineError::Calib)?;
+    // Views of one stretch of the recording err alike; the σ printed must know it.
+    let grouped = calib::Options {
+        view_groups: used_origins.iter().map(|o| (o.t_s / GROUP_SECONDS).floor().max(0.0) as u32).collect(),
+        ..setup.calib.clone()
+    };
+    let calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
     let without_k3 =
         if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
-            let opts = calib::Options { fix_k3: true, ..setup.calib.clone() };
+            let opts = calib::Options { fix_k3: true, ..grouped.clone() };
             calib::calibrate(&used, setup.image_size, &opts).ok()
         } else {
             None
         };
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
-    let advice = advice(&calibration, &coverage);
-    Ok(Outcome { selection, used, used_origins, smoothing, edge_shift, calibration, without_k3, coverage, advice })
+    let mut advice = advice(&calibration, &coverage);
+    advice.extend(focal_warning(&calibration));
+    let failure = verdict(&calibration);
+    Ok(Outcome {
+        selection,
+        used,
+        used_origins,
+        smoothing,
+        edge_shift,
+        calibration,
+        without_k3,
+        coverage,
+        advice,
+        failure,
+    })
+}
+
+/// A focal length looser than this (1σ, relative) is worth a warning: the accuracy evcal
+/// aims at.
+pub const FOCAL_WARN_RELATIVE: f64 = 1e-3;
+/// A focal length looser than this (1σ, relative), or a principal point looser than this
+/// fraction of the sensor's size, is no calibration: a lens's focal length is known to
+/// about this from its data sheet.
+pub const FAILED_RELATIVE: f64 = 0.05;
+
+/// A warning when σ(fx) or σ(fy) exceeds [`FOCAL_WARN_RELATIVE`], with the motion that fixes
+/// the focal length.
+fn focal_warning(cal: &Calibration) -> Option<String> {
+    let k = &cal.intrinsics;
+    let rel = (cal.std_dev[0] / k.fx.abs()).max(cal.std_dev[1] / k.fy.abs());
+    (rel > FOCAL_WARN_RELATIVE).then(|| {
+        let tilt = crate::select::TiltSpread::of(cal);
+        format!(
+            "the focal length is weakly fixed: fx ±{:.2} %, fy ±{:.2} % (1σ; evcal aims at 0.1 %). The views tilt the target by at most {:.0}°: with little tilt the focal length is told apart from the distance only by how the image grows as the target comes nearer. Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
+            100.0 * cal.std_dev[0] / k.fx.abs(),
+            100.0 * cal.std_dev[1] / k.fy.abs(),
+            tilt.max_deg
+        )
+    })
+}
+
+/// Why `cal` is no calibration, if it is not: a parameter the views leave so loose that its
+/// printed value means nothing (beyond [`FAILED_RELATIVE`]).
+pub fn verdict(cal: &Calibration) -> Option<String> {
+    let (k, sd) = (&cal.intrinsics, &cal.std_dev);
+    let size = cal.image_size.map(f64::from);
+    let mut loose = Vec::new();
+    for (i, scale, unit) in [(0, k.fx.abs(), "%"), (1, k.fy.abs(), "%"), (2, size[0], "px"), (3, size[1], "px")] {
+        if !(sd[i].is_finite() && sd[i] <= FAILED_RELATIVE * scale) {
+            let name = crate::calib::PARAMETER_NAMES[i];
+            loose.push(match unit {
+                "%" => format!("{name} ±{:.1} % (1σ)", 100.0 * sd[i] / scale),
+                _ => format!("{name} ±{:.1} px (1σ)", sd[i]),
+            });
+        }
+    }
+    (!loose.is_empty()).then(|| {
+        format!(
+            "the views do not fix the camera: {} (at most {:.0} % of the focal length or the sensor's size is a calibration); record the target tilted 20–40° to each side, filling the sensor, in light bright enough for the grid to be found in most windows",
+            loose.join(", "),
+            100.0 * FAILED_RELATIVE
+        )
+    })
 }
 
 #[cfg(test)]
@@ -389,6 +524,34 @@ mod test {
         assert_eq!(v.stats.points_at_edge, 4);
         assert_eq!(v.views[0].object.len(), 40);
         assert!(v.views[0].image.iter().all(|p| p[0] + 4.0 < 185.5));
+    }
+
+    /// A calibration whose focal length the views leave loose is warned about, and one they
+    /// leave meaningless is no calibration, with the parameter named.
+    #[test]
+    fn loose_parameters_are_warned_about_or_fail_the_calibration() {
+        let truth = calib::Intrinsics {
+            fx: 352.4,
+            fy: 351.1,
+            cx: 171.3,
+            cy: 128.6,
+            k1: -0.31,
+            k2: 0.12,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        };
+        let views = calib::synthetic_views(&truth, 12, 0.02, 3);
+        let mut cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
+        assert!(verdict(&cal).is_none() && focal_warning(&cal).is_none(), "{:?}", cal.std_dev);
+        cal.std_dev[0] = 0.004 * truth.fx;
+        let w = focal_warning(&cal).expect("a warning");
+        assert!(w.contains("fx ±0.40 %") && w.contains("tilt"), "{w}");
+        assert!(verdict(&cal).is_none());
+        cal.std_dev[0] = 1.27 * truth.fx;
+        cal.std_dev[3] = f64::NAN;
+        let why = verdict(&cal).expect("no calibration");
+        assert!(why.contains("fx ±127.0 %") && why.contains("cy ±NaN px"), "{why}");
     }
 
     #[test]

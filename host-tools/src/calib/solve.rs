@@ -67,6 +67,8 @@ struct Normal {
     v: Vec<M6>,
     w: Vec<SMatrix<f64, 9, 6>>,
     gv: Vec<V6>,
+    /// Per view: its share of `g`.
+    gt: Vec<SVector<f64, 9>>,
     cost: f64,
 }
 
@@ -94,10 +96,12 @@ fn normal(views: &[ViewData], k: &Intrinsics, poses: &[Pose], free: &Free) -> Op
         v: Vec::with_capacity(views.len()),
         w: Vec::with_capacity(views.len()),
         gv: Vec::with_capacity(views.len()),
+        gt: Vec::with_capacity(views.len()),
         cost: 0.0,
     };
     for (view, pose) in views.iter().zip(poses) {
         let (mut v, mut w, mut gv) = (M6::zeros(), SMatrix::<f64, 9, 6>::zeros(), V6::zeros());
+        let mut gt = SVector::<f64, 9>::zeros();
         for ((o, m), &wt) in view.object.iter().zip(view.image).zip(view.weight) {
             let p = project(k, pose, o)?;
             for (r, &mr) in m.iter().enumerate() {
@@ -106,6 +110,7 @@ fn normal(views: &[ViewData], k: &Intrinsics, poses: &[Pose], free: &Free) -> Op
                 let jp = V6::from_row_slice(&p.d_pose[r]);
                 out.u += wt * jt * jt.transpose();
                 out.g += wt * res * jt;
+                gt += wt * res * jt;
                 v += wt * jp * jp.transpose();
                 w += wt * jt * jp.transpose();
                 gv += wt * res * jp;
@@ -115,6 +120,7 @@ fn normal(views: &[ViewData], k: &Intrinsics, poses: &[Pose], free: &Free) -> Op
         out.v.push(v);
         out.w.push(w);
         out.gv.push(gv);
+        out.gt.push(gt);
     }
     out.cost.is_finite().then_some(out)
 }
@@ -248,4 +254,24 @@ pub(crate) fn solve(
     }
     let (reduced, _, _) = reduce(&nm, n, 0.0)?;
     Some(Solution { intrinsics: k, poses, cost: nm.cost, reduced, free: idx, iterations, converged })
+}
+
+/// Each view's score for the free intrinsics with its pose profiled out, `gθ − W V⁻¹ gv`
+/// (the first `n` entries, `n` the number of free intrinsics): at a solution the scores
+/// sum to zero, and how they scatter tells how the views' errors move the intrinsics
+/// (the "meat" of a sandwich covariance). `None` when a pose block is singular.
+pub(crate) fn view_scores(
+    views: &[ViewData],
+    k: &Intrinsics,
+    poses: &[Pose],
+    free: &Free,
+) -> Option<Vec<SVector<f64, 9>>> {
+    let nm = normal(views, k, poses, free)?;
+    nm.gt
+        .iter()
+        .zip(&nm.v)
+        .zip(&nm.w)
+        .zip(&nm.gv)
+        .map(|(((gt, v), w), gv)| Some(gt - w * (v.try_inverse()? * gv)))
+        .collect()
 }

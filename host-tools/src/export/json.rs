@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! rejected stray_points rms_all_px warnings iterations converged edge_shift`.
+//! rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
 
 use super::{RunCounts, ViewOrigin};
 use crate::calib::{Calibration, Intrinsics};
@@ -68,6 +68,15 @@ pub struct ResultJson {
     /// moved forward before the solve (`null`: not measured).
     #[serde(default)]
     pub edge_shift: Option<crate::motion::EdgeShift>,
+    /// The radius of the board's circles the solve modelled (each detected centre compared
+    /// with its circle's outline centre), metres; `null`: centres compared with the
+    /// projections of the board points.
+    #[serde(default)]
+    pub circle_radius_m: Option<f64>,
+    /// Why this is no calibration (the views leave a parameter too loose to mean anything);
+    /// `null` for a calibration. A program reading the file should check it.
+    #[serde(default)]
+    pub calibration_failed: Option<String>,
 }
 
 /// One used view in the JSON result.
@@ -159,6 +168,8 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         iterations: cal.iterations,
         converged: cal.converged,
         edge_shift: None,
+        circle_radius_m: cal.circle_radius_m,
+        calibration_failed: None,
     })
 }
 

@@ -31,9 +31,8 @@ pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
 pub use report::{write_report, REPORT_SIZE};
 pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX};
 
-use crate::calib::{Calibration, Intrinsics, View, ViewResult};
+use crate::calib::{Calibration, View};
 use anyhow::{bail, Context, Result};
-use nalgebra::{Rotation3, Vector3};
 use std::path::{Path, PathBuf};
 
 /// Where one input view came from: the detection window whose grid it is. Indexed like the
@@ -92,6 +91,9 @@ pub struct Export<'a> {
     pub calibration_time: Option<&'a str>,
     /// The shift taken out of the centres before the solve, for the JSON result.
     pub edge_shift: Option<crate::motion::EdgeShift>,
+    /// Why the result is no calibration ([`crate::pipeline::verdict`]): every file says so
+    /// (the JSON's `calibration_failed`, a comment at the top of each YAML file).
+    pub failure: Option<&'a str>,
 }
 
 impl<'a> Export<'a> {
@@ -118,6 +120,7 @@ impl<'a> Export<'a> {
             rostopic: "/dvs/events",
             calibration_time: None,
             edge_shift: None,
+            failure: None,
         }
     }
 }
@@ -146,12 +149,19 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     let (kalibr, warnings) = kalibr_camchain_yaml(kalibr_cal, export.rostopic);
     let mut json = result_json(cal, export.origins, export.counts)?;
     json.edge_shift = export.edge_shift;
+    json.calibration_failed = export.failure.map(str::to_owned);
     json.warnings.extend(warnings.iter().cloned());
     let json = serde_json::to_string_pretty(&json).context("the JSON result")? + "\n";
 
     let path = |name: &str| dir.join(name);
     let mut written = Written { paths: Vec::with_capacity(FILE_NAMES.len()), warnings };
-    let texts = [json, opencv_yaml(cal, export.calibration_time), camera_info_yaml(cal, export.camera_name), kalibr];
+    let mut texts =
+        [json, opencv_yaml(cal, export.calibration_time), camera_info_yaml(cal, export.camera_name), kalibr];
+    if let Some(why) = export.failure {
+        for t in &mut texts[1..] {
+            *t = marked_not_a_calibration(t, why);
+        }
+    }
     for (name, text) in FILE_NAMES.iter().zip(texts) {
         let p = path(name);
         std::fs::write(&p, text).with_context(|| format!("{}: cannot write", p.display()))?;
@@ -163,31 +173,25 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     Ok(written)
 }
 
-/// Each point's reprojection residual, projected minus detected (px), for one used view:
-/// the view's points through its pose (`rvec`, `tvec`) and the intrinsics. A point that
-/// lands behind the camera gives NaN.
-pub fn view_residuals(view: &View, intrinsics: &Intrinsics, pose: &ViewResult) -> Vec<[f64; 2]> {
-    let rotation = Rotation3::from_scaled_axis(Vector3::from(pose.rvec));
-    let translation = Vector3::from(pose.tvec);
-    view.object
-        .iter()
-        .zip(&view.image)
-        .map(|(o, m)| match intrinsics.project(&(rotation * Vector3::from(*o) + translation)) {
-            Some(p) => [p[0] - m[0], p[1] - m[1]],
-            None => [f64::NAN; 2],
-        })
-        .collect()
+/// `yaml` with a comment saying it is no calibration, and why: after OpenCV's `%YAML`
+/// directive (which must come first), else at the top.
+fn marked_not_a_calibration(yaml: &str, why: &str) -> String {
+    let note = format!("# NOT A CALIBRATION: {}\n", why.replace('\n', " "));
+    match yaml.split_once('\n') {
+        Some((first, rest)) if first.starts_with("%YAML") => format!("{first}\n{note}{rest}"),
+        _ => note + yaml,
+    }
 }
 
 /// The residuals of every view the calibration used, in the order of `calibration.views`
-/// (see [`view_residuals`]). `views` are the views given to the solver; an error when the
+/// (see [`Calibration::residuals`]). `views` are the views given to the solver; an error when the
 /// calibration names a view that is not among them.
 pub fn residuals(views: &[View], calibration: &Calibration) -> Result<Vec<Vec<[f64; 2]>>> {
     calibration
         .views
         .iter()
         .map(|r| match views.get(r.view) {
-            Some(v) => Ok(view_residuals(v, &calibration.intrinsics, r)),
+            Some(v) => Ok(calibration.residuals(v, r)),
             None => bail!("the calibration used view {} but only {} views were given", r.view, views.len()),
         })
         .collect()
@@ -198,7 +202,7 @@ pub(crate) mod testdata {
     //! Calibrations for the tests, made by the solver from synthetic views.
 
     use super::*;
-    use crate::calib::{calibrate, synthetic_views, Options};
+    use crate::calib::{calibrate, synthetic_views, Intrinsics, Options};
 
     pub const TRUTH: Intrinsics =
         Intrinsics { fx: 352.5, fy: 351.25, cx: 171.3, cy: 128.7, k1: -0.31, k2: 0.11, p1: 4e-4, p2: -3e-4, k3: 0.0 };
@@ -258,6 +262,32 @@ mod test {
         assert_eq!(json.warnings[cal.warnings.len()..], written.warnings[..]);
         assert_eq!(json.windows, timeline.len() as u64);
         assert_eq!(json.detections, views.len() as u64);
+    }
+
+    /// A result that is no calibration says so in every file, and OpenCV's YAML still
+    /// starts with its directive.
+    #[test]
+    fn a_failed_calibration_is_marked_in_every_file() {
+        let (views, cal, origins, timeline) = setup(&TRUTH, false);
+        let dir = tempfile::tempdir().unwrap();
+        let why = "the views do not fix the camera: fx ±127.0 % (1σ)";
+        let export = Export { failure: Some(why), ..Export::new(&cal, &views, &origins, &timeline) };
+        let written = write_all(dir.path(), &export).unwrap();
+        let json: ResultJson = serde_json::from_slice(&std::fs::read(&written.paths[0]).unwrap()).unwrap();
+        assert_eq!(json.calibration_failed.as_deref(), Some(why));
+        for p in &written.paths[1..4] {
+            let text = std::fs::read_to_string(p).unwrap();
+            let note = format!("# NOT A CALIBRATION: {why}\n");
+            match text.strip_prefix("%YAML:1.0\n") {
+                Some(rest) => assert!(rest.starts_with(&note), "{}: {text}", p.display()),
+                None => assert!(text.starts_with(&note), "{}: {text}", p.display()),
+            }
+        }
+        // A calibration is not marked.
+        let written = write_all(dir.path(), &Export::new(&cal, &views, &origins, &timeline)).unwrap();
+        let json: ResultJson = serde_json::from_slice(&std::fs::read(&written.paths[0]).unwrap()).unwrap();
+        assert_eq!(json.calibration_failed, None);
+        assert!(!std::fs::read_to_string(&written.paths[1]).unwrap().contains("NOT A CALIBRATION"));
     }
 
     #[test]

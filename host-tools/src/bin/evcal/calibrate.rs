@@ -52,6 +52,13 @@ pub struct TargetArgs {
     /// apart (offset by S vertically). The focal length does not depend on it; the poses do.
     #[arg(long, value_name = "METRES")]
     pub spacing: f64,
+    /// Radius of the printed circles, metres. A circle seen at a slant images as an ellipse
+    /// whose centre is not the image of the circle's centre (the nearer half is drawn
+    /// larger); the solve models where each outline's centre lies, which takes the radius.
+    /// Default: estimated from the fitted radii (a few percent short, which leaves a few
+    /// thousandths of a pixel).
+    #[arg(long, value_name = "METRES")]
+    pub radius: Option<f64>,
 }
 
 /// What the solve may change.
@@ -162,7 +169,16 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     if windows.is_empty() {
         bail!("{}: no detection windows (an empty file, or fewer events than one window holds)", a.input.display());
     }
-    let setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
+    let mut setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
+    if let Some(r) = a.target.radius {
+        if !(r.is_finite() && r > 0.0 && r < 0.5 * pattern.spacing * std::f64::consts::SQRT_2) {
+            bail!(
+                "--radius must be a positive number of metres below half the diagonal spacing ({:.4} m): circles would overlap",
+                0.5 * pattern.spacing * std::f64::consts::SQRT_2
+            );
+        }
+        setup.circle_radius = Some(r);
+    }
     if !a.quiet {
         eprintln!(
             "evcal: target {}x{} asymmetric circle grid, spacing {} m, as seen from the front:\n{}",
@@ -176,7 +192,22 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let outcome = solve(&views, &setup)?;
     let written = export(&views, &outcome, &a.out, a.json.as_deref())?;
     report(&views, &outcome, &setup, None)?;
-    list_written(&written)
+    list_written(&written)?;
+    fail_if_no_calibration(&outcome, &a.out)
+}
+
+/// Exit status of a run whose views gave no calibration ([`Outcome::failure`]): apart from
+/// 1 (an error), so that scripts can tell "no calibration in this recording" from "could not
+/// read it".
+pub const EXIT_NO_CALIBRATION: i32 = 3;
+
+/// Ends the process with [`EXIT_NO_CALIBRATION`] and the reason when `o` is no calibration.
+pub fn fail_if_no_calibration(o: &Outcome, out: &Path) -> Result<()> {
+    if let Some(why) = &o.failure {
+        eprintln!("evcal: calibration failed: {why}. The files in {} are marked as not a calibration.", out.display());
+        std::process::exit(EXIT_NO_CALIBRATION);
+    }
+    Ok(())
 }
 
 fn indent(s: &str) -> String {
@@ -248,6 +279,13 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             s.points
         )?;
     }
+    if let Some(r) = c.circle_radius_m {
+        let how = if setup.circle_radius.is_some() { "as given" } else { "estimated from the fitted radii" };
+        outln!(
+            "circle outlines modelled: radius {:.2} mm ({how}); each centre compared with its outline's centre",
+            r * 1e3
+        )?;
+    }
     let points = c.views.iter().map(|v| v.points).sum::<usize>();
     outln!(
         "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
@@ -307,6 +345,7 @@ pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Re
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
+    e.failure = o.failure.as_deref();
     let written = write_all(dir, &e)?;
     if let Some(j) = json {
         std::fs::copy(&written.paths[0], j)

@@ -92,7 +92,8 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let written = export(&views, &outcome, &a.out, None)?;
     report(&views, &outcome, &setup, Some(&truth))?;
     list_written(&written)?;
-    outln!("  {}", a.out.join("detections.jsonl").display())
+    outln!("  {}", a.out.join("detections.jsonl").display())?;
+    crate::calibrate::fail_if_no_calibration(&outcome, &a.out)
 }
 
 fn write_detections(path: &std::path::Path, windows: &[WindowRecord]) -> Result<()> {

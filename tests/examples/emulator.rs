@@ -1,0 +1,336 @@
+//! Calibrates recordings of an independent pixel emulator against their ground truth.
+//!
+//! `cargo run --release -p evcal-tests --example emulator -- DIR...`: each DIR holds
+//! `events.h5` and `truth.json` as `../shared/data/independent-emulator/` lays them out
+//! (K, distortion, pattern, poses at 30 Hz). Each recording goes through what `evcal
+//! calibrate` does with its defaults; one table row per recording: fx, fy error (%), cx, cy
+//! error (px), each also in units of the printed σ, the RMS and the views used.
+//!
+//! `--detections DIR` reads (or, the first time, writes) each recording's detection windows
+//! as `DIR/<name>.jsonl`, so that a rerun skips the detection core. `--diagnose` also solves
+//! the same views on the true centres (projected circle centres, and projected ellipse
+//! centres) and prints how the detected centres err against the truth. `--no-edge-shift` and
+//! `--no-smoothing` switch those steps off, as `evcal calibrate`'s flags of the same names do.
+
+use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_host::{
+    calib::{calibrate, Intrinsics, Options, View},
+    detections::{self, read_jsonl, WindowRecord},
+    pipeline::{calibrate_views, views_from_windows, Outcome, Setup},
+    recording::Recording,
+};
+use nalgebra::{Rotation3, Vector3};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+#[derive(Deserialize)]
+struct Truth {
+    name: String,
+    sensor: SensorJson,
+    #[serde(rename = "K")]
+    k: KJson,
+    dist: DistJson,
+    pattern: PatternJson,
+    frames30: Frames,
+}
+#[derive(Deserialize)]
+struct SensorJson {
+    width: u16,
+    height: u16,
+}
+#[derive(Deserialize)]
+struct KJson {
+    fx: f64,
+    fy: f64,
+    cx: f64,
+    cy: f64,
+}
+#[derive(Deserialize)]
+struct DistJson {
+    k1: f64,
+    k2: f64,
+    p1: f64,
+    p2: f64,
+    k3: f64,
+}
+#[derive(Deserialize)]
+struct PatternJson {
+    rows: usize,
+    cols: usize,
+    spacing_m: f64,
+    radius_m: f64,
+}
+#[derive(Deserialize)]
+struct Frames {
+    frames: Vec<FrameJson>,
+}
+#[derive(Deserialize)]
+struct FrameJson {
+    t: f64,
+    rvec: [f64; 3],
+    tvec: [f64; 3],
+}
+
+impl Truth {
+    fn intrinsics(&self) -> Intrinsics {
+        let (k, d) = (&self.k, &self.dist);
+        Intrinsics { fx: k.fx, fy: k.fy, cx: k.cx, cy: k.cy, k1: d.k1, k2: d.k2, p1: d.p1, p2: d.p2, k3: d.k3 }
+    }
+
+    /// The pose at `t` seconds: Catmull–Rom through the 30 Hz poses (rvec and tvec
+    /// component by component; the motion is smooth at that scale).
+    fn pose_at(&self, t: f64) -> ([f64; 3], [f64; 3]) {
+        let f = &self.frames30.frames;
+        let dt = f[1].t - f[0].t;
+        let s = ((t - f[0].t) / dt).clamp(0.0, (f.len() - 1) as f64 - 1e-9);
+        let i = s.floor() as usize;
+        let u = s - i as f64;
+        let at = |k: isize| &f[k.clamp(0, f.len() as isize - 1) as usize];
+        let i = i as isize;
+        let (p0, p1, p2, p3) = (at(i - 1), at(i), at(i + 1), at(i + 2));
+        let cr = |a: f64, b: f64, c: f64, d: f64| {
+            0.5 * (2.0 * b
+                + (-a + c) * u
+                + (2.0 * a - 5.0 * b + 4.0 * c - d) * u * u
+                + (-a + 3.0 * b - 3.0 * c + d) * u * u * u)
+        };
+        let r = [0, 1, 2].map(|k| cr(p0.rvec[k], p1.rvec[k], p2.rvec[k], p3.rvec[k]));
+        let tv = [0, 1, 2].map(|k| cr(p0.tvec[k], p1.tvec[k], p2.tvec[k], p3.tvec[k]));
+        (r, tv)
+    }
+}
+
+/// The true image of board point `o` at `t`: the projection of the circle's centre, and the
+/// centre of its projected outline (the ellipse's).
+fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<([f64; 2], [f64; 2])> {
+    let (rv, tv) = truth.pose_at(t);
+    let rot = Rotation3::new(Vector3::from(rv));
+    let tv = Vector3::from(tv);
+    let cam = |x: f64, y: f64| rot * Vector3::new(x, y, 0.0) + tv;
+    let centre = k.project(&cam(o[0], o[1]))?;
+    let r = truth.pattern.radius_m;
+    let n = 96;
+    let mut pts = Vec::with_capacity(n);
+    for j in 0..n {
+        let a = std::f64::consts::TAU * j as f64 / n as f64;
+        pts.push(k.project(&cam(o[0] + r * a.cos(), o[1] + r * a.sin()))?);
+    }
+    let (mut area, mut cx, mut cy) = (0.0, 0.0, 0.0);
+    for j in 0..n {
+        let ([x0, y0], [x1, y1]) = (pts[j], pts[(j + 1) % n]);
+        let c = x0 * y1 - x1 * y0;
+        area += c;
+        cx += (x0 + x1) * c;
+        cy += (y0 + y1) * c;
+    }
+    Some((centre, [cx / (3.0 * area), cy / (3.0 * area)]))
+}
+
+fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize) -> Vec<WindowRecord> {
+    let file = cache.map(|c| c.join(format!("{name}.jsonl")));
+    if let Some(w) = file.as_ref().and_then(|f| std::fs::File::open(f).ok()) {
+        if let Ok(w) = read_jsonl(std::io::BufReader::new(w)) {
+            return w;
+        }
+    }
+    let path = dir.join("events.h5");
+    let rec = Recording::open(&path).unwrap_or_else(|e| {
+        eprintln!("{}: {e}", path.display());
+        std::process::exit(1)
+    });
+    let mut windows = Vec::new();
+    detections::run(rec, DetectConfig::new(sensor), |d| windows.push(WindowRecord::from_detection(d))).unwrap_or_else(
+        |e| {
+            eprintln!("{}: {e}", path.display());
+            std::process::exit(1)
+        },
+    );
+    if let Some(f) = file {
+        let _ = std::fs::create_dir_all(f.parent().unwrap_or(Path::new(".")));
+        let text: String = windows.iter().map(|w| w.to_json_line() + "\n").collect();
+        let _ = std::fs::write(f, text);
+    }
+    windows
+}
+
+/// fx, fy relative error (%), cx, cy error (px).
+fn errors(got: &Intrinsics, truth: &Intrinsics) -> [f64; 4] {
+    [
+        100.0 * (got.fx - truth.fx) / truth.fx,
+        100.0 * (got.fy - truth.fy) / truth.fy,
+        got.cx - truth.cx,
+        got.cy - truth.cy,
+    ]
+}
+
+fn main() {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut cache: Option<PathBuf> = None;
+    if let Some(i) = args.iter().position(|a| a == "--detections") {
+        if i + 1 >= args.len() {
+            eprintln!("--detections needs a folder");
+            std::process::exit(2);
+        }
+        cache = Some(PathBuf::from(args.remove(i + 1)));
+        args.remove(i);
+    }
+    let mut flag = |name: &str| args.iter().position(|a| a == name).map(|i| args.remove(i)).is_some();
+    let (diagnose, no_edge_shift, no_smoothing) = (flag("--diagnose"), flag("--no-edge-shift"), flag("--no-smoothing"));
+    if args.is_empty() {
+        eprintln!(
+            "usage: emulator [--detections DIR] [--diagnose] [--no-edge-shift] [--no-smoothing] RECORDING_DIR..."
+        );
+        std::process::exit(2);
+    }
+    println!("| recording | fx error | fy error | cx error | cy error | fx, fy, cx, cy error / σ | RMS | views |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for dir in args.iter().map(PathBuf::from) {
+        let truth: Truth = std::fs::read(dir.join("truth.json"))
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .unwrap_or_else(|| {
+                eprintln!("{}: no readable truth.json", dir.display());
+                std::process::exit(1)
+            });
+        let k = truth.intrinsics();
+        let sensor = SensorSize { width: truth.sensor.width, height: truth.sensor.height };
+        let windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor);
+        let pattern = evcal_host::grid::Pattern::new(truth.pattern.rows, truth.pattern.cols, truth.pattern.spacing_m)
+            .expect("a valid pattern");
+        let mut setup = Setup::new(pattern, [u32::from(sensor.width), u32::from(sensor.height)]);
+        setup.edge_shift = !no_edge_shift;
+        if no_smoothing {
+            setup.smooth = None;
+        }
+        let views = views_from_windows(&windows, &setup, &|_| {});
+        let out = match calibrate_views(&views, &setup) {
+            Ok(o) => o,
+            Err(e) => {
+                println!("| {} | failed: {e} | | | | | | |", truth.name);
+                continue;
+            }
+        };
+        let c = &out.calibration;
+        let e = errors(&c.intrinsics, &k);
+        let sd = [100.0 * c.std_dev[0] / k.fx, 100.0 * c.std_dev[1] / k.fy, c.std_dev[2], c.std_dev[3]];
+        let sig: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / sd[i])).collect();
+        println!(
+            "| {} | {:+.3} % (σ {:.3}) | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {} |",
+            truth.name,
+            e[0],
+            sd[0],
+            e[1],
+            e[2],
+            sd[2],
+            e[3],
+            sig.join(", "),
+            c.rms_px,
+            c.views.len()
+        );
+        if diagnose {
+            println!(
+                "    circle radius estimated {:.2} mm (true {:.2} mm)",
+                1e3 * views.circle_radius_m.unwrap_or(f64::NAN),
+                1e3 * truth.pattern.radius_m
+            );
+            diagnose_run(&truth, &k, &windows, &out, &setup);
+        }
+    }
+}
+
+/// Solves the views used on the true centres, and says how the detected ones err.
+///
+/// Per view, the delay that best explains its centres (detected ≈ truth at t_ref − d); the
+/// residual left after it, split along and across each circle's motion; and the solve of
+/// the same views on the truth plus only one part of that residual, which tells which part
+/// moves the intrinsics (plain least squares, so that every point counts alike).
+fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &Outcome, setup: &Setup) {
+    let t_of = |seq: u64| windows.iter().find(|w| u64::from(w.seq) == seq).map_or(0.0, |w| w.t_ref_us as f64 * 1e-6);
+    let plain = Options { robust: false, circle_radius: Some(truth.pattern.radius_m), ..setup.calib.clone() };
+    let mut exact = Vec::new();
+    let mut delayed = Vec::new();
+    let mut detected = Vec::new();
+    // Per point of `delayed`: the unit direction of its circle's motion and its residual.
+    let mut motion: Vec<([f64; 2], [f64; 2])> = Vec::new();
+    let mut delays = Vec::new();
+    for r in &out.calibration.views {
+        let v = &out.used[r.view];
+        let t = t_of(out.used_origins[r.view].window_seq);
+        let outline = |o: &[f64; 3], dt: f64| true_centres(truth, k, o, t - dt).map(|(_, e)| e);
+        let cost = |d: f64| -> f64 {
+            v.object
+                .iter()
+                .zip(&v.image)
+                .filter_map(|(o, m)| outline(o, d).map(|e| (m[0] - e[0]).powi(2) + (m[1] - e[1]).powi(2)))
+                .sum()
+        };
+        // Golden section over ±60 ms (dim pixels answer tens of milliseconds late).
+        let (mut lo, mut hi) = (-0.06, 0.06);
+        for _ in 0..60 {
+            let (a, b) = (lo + (hi - lo) * 0.382, lo + (hi - lo) * 0.618);
+            if cost(a) < cost(b) {
+                hi = b
+            } else {
+                lo = a
+            }
+        }
+        let d = 0.5 * (lo + hi);
+        delays.push(d);
+        let (mut e0, mut e1, mut e2) = (View::default(), View::default(), View::default());
+        for (o, m) in v.object.iter().zip(&v.image) {
+            let (Some((c, _)), Some(e), Some(later)) =
+                (true_centres(truth, k, o, t), outline(o, d), outline(o, d - 1e-3))
+            else {
+                continue;
+            };
+            let (vx, vy) = (later[0] - e[0], later[1] - e[1]);
+            let n = vx.hypot(vy).max(1e-12);
+            motion.push(([vx / n, vy / n], [m[0] - e[0], m[1] - e[1]]));
+            for (view, p) in [(&mut e0, c), (&mut e1, e), (&mut e2, *m)] {
+                view.object.push(*o);
+                view.image.push(p);
+            }
+        }
+        exact.push(e0);
+        delayed.push(e1);
+        detected.push(e2);
+    }
+    let solve = |vs: &[View], opts: &Options| calibrate(vs, setup.image_size, opts).map(|c| errors(&c.intrinsics, k));
+    let show = |name: &str, vs: &[View], opts: &Options| match solve(vs, opts) {
+        Ok(e) => println!("    {name}: fx {:+.3} %, fy {:+.3} %, cx {:+.2}, cy {:+.2} px", e[0], e[1], e[2], e[3]),
+        Err(e) => println!("    {name}: {e}"),
+    };
+    let centre_only = Options { circle_radius: None, ..plain.clone() };
+    show("true projections of the circles' centres, solved as centres", &exact, &centre_only);
+    show("true outline centres at each view's best delay, solved as centres", &delayed, &centre_only);
+    show("true outline centres at each view's best delay, outlines modelled", &delayed, &plain);
+    show("detected, outlines modelled", &detected, &plain);
+    delays.sort_by(f64::total_cmp);
+    let q = |f: f64| 1e3 * delays[((delays.len() - 1) as f64 * f) as usize];
+    println!("    best delay per view: median {:.2} ms (10 % {:.2}, 90 % {:.2})", q(0.5), q(0.1), q(0.9));
+    // The residual after each view's delay, along and across the motion, alone on the truth.
+    let (mut along, mut across) = (delayed.clone(), delayed.clone());
+    let mut sums = [0.0; 4];
+    let mut j = 0;
+    for (va, vc) in along.iter_mut().zip(across.iter_mut()) {
+        for (pa, pc) in va.image.iter_mut().zip(vc.image.iter_mut()) {
+            let ([ux, uy], [rx, ry]) = motion[j];
+            j += 1;
+            let a = rx * ux + ry * uy;
+            let c = -rx * uy + ry * ux;
+            sums = [sums[0] + a, sums[1] + a * a, sums[2] + c, sums[3] + c * c];
+            *pa = [pa[0] + a * ux, pa[1] + a * uy];
+            *pc = [pc[0] - c * uy, pc[1] + c * ux];
+        }
+    }
+    let n = j.max(1) as f64;
+    println!(
+        "    residual after the delay: along the motion mean {:+.4}, RMS {:.3} px; across mean {:+.4}, RMS {:.3} px ({j} points)",
+        sums[0] / n,
+        (sums[1] / n).sqrt(),
+        sums[2] / n,
+        (sums[3] / n).sqrt()
+    );
+    show("truth at the delay plus the residual along the motion only", &along, &plain);
+    show("truth at the delay plus the residual across the motion only", &across, &plain);
+}
