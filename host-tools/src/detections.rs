@@ -10,9 +10,9 @@
 
 use crate::recording::ReadError;
 use evcal_core::{
-    config::MAX_CLUSTERS,
+    config::{DEFAULT_EVENTS_PER_WINDOW, MAX_CLUSTERS},
     detect::{DetectConfig, Detection, Detector},
-    event::{Event, InputStats},
+    event::{Event, InputStats, SensorSize},
     wire::{DetectionFrame, DetectionHeader, WireCentre},
 };
 use serde::{Deserialize, Serialize};
@@ -21,6 +21,43 @@ use serde::{Deserialize, Serialize};
 /// [`MAX_EVENTS_PER_WINDOW`](evcal_core::config::MAX_EVENTS_PER_WINDOW)). Results do not
 /// depend on it: only the number of clusters shapes them, and that matches the firmware's.
 pub const HOST_MAX_EVENTS: usize = 32_000;
+
+/// The sensor the core's default window size was chosen for: the E-Calib paper's DAVIS346,
+/// with its 4000 events per window ([`DEFAULT_EVENTS_PER_WINDOW`]).
+pub const REFERENCE_SENSOR: SensorSize = SensorSize::DAVIS346;
+
+/// Window sizes of [`default_events_per_window`] are multiples of this many events.
+pub const EVENTS_PER_WINDOW_STEP: usize = 500;
+
+/// The host's default events per window for a sensor of `sensor`'s size: the paper's 4000
+/// for a DAVIS346, scaled by the sensor's linear size, `4000 · √(W·H / (346·260))`, rounded
+/// to a multiple of [`EVENTS_PER_WINDOW_STEP`] and kept within 1 to [`HOST_MAX_EVENTS`].
+///
+/// Why linear: the board's circles span a number of pixels proportional to the sensor's
+/// linear size (the board framed alike), and so does the distance they travel in a second;
+/// the event rate grows with both, as the area. A window of a fixed number of events is
+/// then shorter on a larger sensor, its edges sweep fewer pixels and each circle's events
+/// are spread thinner along an outline of more pixels: both come back to the DAVIS346's
+/// with a window proportional to the linear size (the area would keep the window's
+/// duration instead, with the motion blur it brings). The square root of the pixel count
+/// is that size for any aspect ratio (on a 16:9 sensor it is 4/3 of the height: the width
+/// of the 4:3 view a board is framed in). Measured on simulated 4x11 cones in good light
+/// (`tests/examples/window_sizes.rs`): see the README.
+pub fn default_events_per_window(sensor: SensorSize) -> usize {
+    let pixels = f64::from(sensor.width) * f64::from(sensor.height);
+    let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);
+    let events = DEFAULT_EVENTS_PER_WINDOW as f64 * (pixels / reference).sqrt();
+    let steps = (events / EVENTS_PER_WINDOW_STEP as f64).round().max(1.0) as usize;
+    (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
+}
+
+/// The core's defaults for a sensor of `sensor`'s size with the host's window size
+/// ([`default_events_per_window`]): what `evcal detect` and `calibrate` run without options.
+pub fn host_config(sensor: SensorSize) -> DetectConfig {
+    let mut cfg = DetectConfig::new(sensor);
+    cfg.window.events = default_events_per_window(sensor);
+    cfg
+}
 
 /// The detector the host runs: the firmware's clusters, a larger window.
 pub type HostDetector = Detector<HOST_MAX_EVENTS, MAX_CLUSTERS>;
@@ -189,6 +226,30 @@ pub fn run(
 #[cfg(test)]
 mod test {
     use super::*;
+
+    #[test]
+    fn default_window_scales_with_the_sensors_linear_size() {
+        let d = |w, h| default_events_per_window(SensorSize::new(w, h));
+        // The paper's figure, exactly: DAVIS346 figures and the demo do not move.
+        assert_eq!(d(346, 260), DEFAULT_EVENTS_PER_WINDOW);
+        assert_eq!(host_config(SensorSize::DAVIS346), DetectConfig::new(SensorSize::DAVIS346));
+        assert_eq!(d(640, 480), 7500); // DVXplorer: 7392
+        assert_eq!(d(1280, 720), 13_000); // IMX636: 12 803
+        assert_eq!(d(320, 320), 4500); // GenX320: 4268
+        assert_eq!(d(240, 180), 3000); // DAVIS240: 2774
+                                       // Linear, not quadratic: twice the width and height, about twice the events.
+        assert_eq!(d(692, 520), 8000);
+        // Multiples of the step, at least one step, at most what the host holds.
+        for (w, h) in [(1, 1), (64, 48), (346, 260), (1280, 800), (2048, 1536), (u16::MAX, u16::MAX)] {
+            let e = d(w, h);
+            assert!(
+                e % EVENTS_PER_WINDOW_STEP == 0 && (EVENTS_PER_WINDOW_STEP..=HOST_MAX_EVENTS).contains(&e),
+                "{w}x{h}: {e}"
+            );
+        }
+        assert_eq!(d(1, 1), EVENTS_PER_WINDOW_STEP);
+        assert_eq!(d(u16::MAX, u16::MAX), HOST_MAX_EVENTS);
+    }
 
     #[test]
     fn json_lines_round_trip_and_bad_lines_are_named() {

@@ -13,7 +13,11 @@
 //! was found (the issue's ≥ 95 %), and how many labelled views hold a point whose nearest
 //! true circle is another (wrong orderings; must be 0).
 
-use evcal_host::pipeline::{calibrate_views, views_from_windows, Setup};
+use evcal_core::event::SensorSize;
+use evcal_host::{
+    detections::default_events_per_window,
+    pipeline::{calibrate_views, views_from_windows, Setup},
+};
 use evcal_tests::{args, recorded::Recorded};
 
 fn main() {
@@ -42,13 +46,14 @@ fn main() {
         let cam = cfg.camera;
         let file = cache.as_ref().map(|d| {
             let name = format!(
-                "{}_{}_{}_{}_{}_{seed}{}.json",
+                "{}_{}_{}_{}_{}_{seed}{}_{}ev.json",
                 args[0],
                 args[1],
                 args[2],
                 args[3],
                 args[4],
-                if windowed { "_windowed" } else { "" }
+                if windowed { "_windowed" } else { "" },
+                default_events_per_window(SensorSize { width: cam.width, height: cam.height })
             );
             d.join(name)
         });

@@ -8,8 +8,9 @@
 //! windows and the truth in DIR, so that a second run with the same arguments skips the
 //! simulation (minutes) and only reruns the host's steps (seconds).
 
+use evcal_core::event::SensorSize;
 use evcal_host::{
-    detections::WindowRecord,
+    detections::{default_events_per_window, WindowRecord},
     grid::{find_grid, Pattern},
     pipeline::Setup,
     track::{follow_explained, Unfollowed},
@@ -34,7 +35,8 @@ fn main() {
     };
     let (cfg, pattern) = args::preset_or_exit(&args[0], &args[1], trajectory, light, seed);
     let cam = cfg.camera;
-    let file = cache.map(|d| d.join(format!("{}.json", args.join("_"))));
+    let events = default_events_per_window(SensorSize { width: cam.width, height: cam.height });
+    let file = cache.map(|d| d.join(format!("{}_{events}ev.json", args.join("_"))));
     let rec = Recorded::simulate(cfg, seconds, false, file.as_deref());
     let (windows, truths) = (&rec.windows, &rec.truth);
 

@@ -2,7 +2,7 @@
 //! calibration examples start from, optionally kept on disk so that a second run with the
 //! same arguments skips the simulation (minutes) and reruns only the host's steps (seconds).
 
-use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_core::event::SensorSize;
 use evcal_host::{
     detections::{self, WindowRecord},
     eval::{simulate, simulate_windows},
@@ -32,14 +32,16 @@ pub struct Recorded {
 
 impl Recorded {
     /// Simulates `seconds` of `cfg` (only what each window needs when `windowed`) and runs
-    /// the core over it. With `cache`, the result is read from `cache` if it is there (the
-    /// caller names the file after everything that shapes it) and written there otherwise.
+    /// the core over it with the host's defaults ([`detections::host_config`]). With `cache`,
+    /// the result is read from `cache` if it is there (the caller names the file after
+    /// everything that shapes it, the window size included) and written there otherwise.
     pub fn simulate(cfg: SimConfig, seconds: f64, windowed: bool, cache: Option<&Path>) -> Self {
         if let Some(r) = cache.and_then(|f| std::fs::read(f).ok()).and_then(|b| serde_json::from_slice(&b).ok()) {
             return r;
         }
         let cam = cfg.camera;
-        let det = DetectConfig::new(SensorSize { width: cam.width, height: cam.height });
+        // The host's defaults: windows sized to the sensor, as `evcal calibrate` cuts them.
+        let det = detections::host_config(SensorSize { width: cam.width, height: cam.height });
         let (events, sim) =
             if windowed { simulate_windows(cfg, seconds, det.window, |_| {}) } else { simulate(cfg, seconds) };
         let mut windows = Vec::new();

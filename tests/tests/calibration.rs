@@ -14,17 +14,19 @@
 //! views that span the motion's tilts, and on the 4 s these cases once used fx read 0.11–0.16 %
 //! long from a pose set covering half the cone's tilt cycle. Over seeds (`examples/calibration_seeds.rs`) one DAVIS346 3x9 spiral seed
 //! of seven reads fx +0.106 % and one dim cone seed +0.103 %; the means are within 0.07 %.
-//! With the true centres in the same views the solve is exact.
+//! With the true centres in the same views the solve is exact. Windows are the host's
+//! defaults (`detections::host_config`), as `evcal calibrate` cuts them: 4000 events on the
+//! DAVIS346, 7500 on the DVXplorer.
 //!
 //! In low light a 4000-event window often holds too few events of part of the grid for the
 //! finder to label it; the windows around it label the part that was seen
 //! (`evcal_host::track`), which counts as found but is not solved on. The figures are in
 //! the issue's closing note.
 
-use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::Intrinsics,
-    detections::{self, WindowRecord},
+    detections::{self, host_config, WindowRecord},
     eval::{simulate, simulate_windows},
     grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Setup},
@@ -72,6 +74,9 @@ struct Figures {
     found_in_view: f64,
     /// As `found_in_view`, counting only grids of the finder's size (not parts).
     whole_in_view: f64,
+    /// As `found_in_view`, counting only the grids the finder labels by itself (none
+    /// followed from the windows around: what the window holds on its own).
+    alone_in_view: f64,
     wrong_orderings: usize,
     views: usize,
     /// The pipeline's estimate of how far the centres trail their circles, px.
@@ -96,7 +101,8 @@ fn run(case: &Case) -> Figures {
         k3: cam.k3,
     };
     let pattern = Pattern::new(cfg.board.rows, cfg.board.cols, cfg.board.spacing).unwrap();
-    let det = DetectConfig::new(SensorSize { width: cam.width, height: cam.height });
+    // The host's defaults, as `evcal calibrate` runs them: windows sized to the sensor.
+    let det = host_config(SensorSize { width: cam.width, height: cam.height });
     let (events, sim) = if case.windowed {
         simulate_windows(cfg, case.seconds, det.window, |_| {})
     } else {
@@ -166,6 +172,10 @@ fn run(case: &Case) -> Figures {
         .count() as f64
         / n_in_view.max(1) as f64;
 
+    let alone = views_from_windows(&windows, &Setup { track: None, ..setup.clone() }, &|_| {});
+    let alone_in_view = alone.timeline.iter().zip(&in_view).filter(|(s, &iv)| iv && s.grid_found).count() as f64
+        / n_in_view.max(1) as f64;
+
     let outcome = calibrate_views(&views, &setup).unwrap_or_else(|e| panic!("{}: {e}", case.sensor));
     let k = outcome.calibration.intrinsics;
     let f = Figures {
@@ -176,6 +186,7 @@ fn run(case: &Case) -> Figures {
         rms_px: outcome.calibration.rms_px,
         found_in_view,
         whole_in_view,
+        alone_in_view,
         wrong_orderings,
         views: outcome.calibration.views.len(),
         shift_estimate: outcome.edge_shift.map(|s| s.px),
@@ -183,7 +194,7 @@ fn run(case: &Case) -> Figures {
     };
     let sd = outcome.calibration.std_dev;
     println!(
-        "{} {} {:?} {:?} {} s seed {}{}: {}; {} views used; centres trail by {:.3} px, measured {:?}; fx {:+.3} % fy {:+.3} % (± {:.3} %, target ±0.1 %), cx {:+.2} cy {:+.2} px (±0.5), RMS {:.3} px (≤ 0.13 good light); found in {:.1} % of {} wholly-in-view windows (≥ 95 %; {:.1} % as grids of the finder's size, not parts); wrong orderings {}",
+        "{} {} {:?} {:?} {} s seed {}{}, {} events/window: {}; {} views used; centres trail by {:.3} px, measured {:?}; fx {:+.3} % fy {:+.3} % (± {:.3} %, target ±0.1 %), cx {:+.2} cy {:+.2} px (±0.5), RMS {:.3} px (≤ 0.13 good light); found in {:.1} % of {} wholly-in-view windows (≥ 95 %; {:.1} % as grids of the finder's size, not parts; {:.1} % by the finder alone, ≥ 90 % for the DVXplorer); wrong orderings {}",
         case.sensor,
         case.pattern,
         case.trajectory,
@@ -191,6 +202,7 @@ fn run(case: &Case) -> Figures {
         case.seconds,
         case.seed,
         if case.windowed { " windowed" } else { "" },
+        det.window.events,
         views.stats.summary(),
         f.views,
         f.shift_true,
@@ -204,6 +216,7 @@ fn run(case: &Case) -> Figures {
         100.0 * f.found_in_view,
         n_in_view,
         100.0 * f.whole_in_view,
+        100.0 * f.alone_in_view,
         f.wrong_orderings
     );
     f
@@ -277,12 +290,21 @@ fn dvxplorer_4x11_cone_good_light() {
         windowed: true,
     });
     guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
+    // The issue's target for windows sized to the sensor: the finder labels the grid by
+    // itself in 90 % of the windows where it is wholly in view (7500-event windows: 94.4 %;
+    // 4000, the paper's size for a DAVIS346: 78.9 %, the rest followed from the windows
+    // around them; RMS 0.069 against 0.111 px).
+    assert!(
+        f.alone_in_view >= 0.90,
+        "the finder alone labels the grid in {:.1} % of in-view windows",
+        100.0 * f.alone_in_view
+    );
 }
 
 /// The DVXplorer in low light: its far columns often too dim for the core, the case in which
 /// the finder once labelled a grid two columns off (a background disc lined up beyond the
 /// seen columns; seed 2, window 297; see `grid::place`). The issue sets no RMS target for low
-/// light; this one reaches 0.164 px (seeds 1, 5: 0.141, 0.143 before the 1.75 px give-up of clutter fits).
+/// light; this one reached 0.164 px with 4000-event windows (seeds 1, 5: 0.141, 0.143 before the 1.75 px give-up of clutter fits), 0.090 px with the host's 7500.
 #[test]
 fn dvxplorer_4x11_cone_low_light() {
     let f = run(&Case {

@@ -48,6 +48,11 @@ pub struct ReplayOptions {
     pub max_retries: u32,
     /// Send every event of the recording, not only those the device's windows will hold.
     pub all_events: bool,
+    /// The configuration's events per window is a wish, not a demand: a device that holds
+    /// fewer cuts windows of as many as it holds, and the replay goes on with them (a note
+    /// says so). Set for the host's default window size, which may exceed a device's; clear,
+    /// a device that holds fewer events than asked is an error.
+    pub window_up_to_device: bool,
 }
 
 impl Default for ReplayOptions {
@@ -58,6 +63,7 @@ impl Default for ReplayOptions {
             retry_timeout: Duration::from_secs(1),
             max_retries: 20,
             all_events: false,
+            window_up_to_device: false,
         }
     }
 }
@@ -129,6 +135,8 @@ pub fn replay(
         report.interrupted = true;
         return Ok(report);
     };
+    // The device's windows, which may hold fewer events than asked (`window_up_to_device`).
+    let config = hello.config;
     let mut used = WindowedEvents::new(events, config, opts.all_events);
     let streamed = stream(link, &mut used, &hello, opts, stop, &mut report, &mut seq, on);
     (report.events_read, report.events_skipped) = (used.read, used.skipped);
@@ -216,7 +224,13 @@ fn handshake(
             let Some(m) = link.recv(Duration::from_millis(50)) else { continue };
             match m {
                 Incoming::Hello(h) if h.session == opts.session && h.reply != HelloReply::Boot => {
-                    check_hello(&h, &config)?;
+                    check_hello(&h, &config, opts.window_up_to_device)?;
+                    if h.config.window.events != config.window.events {
+                        report.notes.push(format!(
+                            "the device holds at most {} events per window: its windows hold {}, not the {} asked",
+                            h.max_events, h.config.window.events, config.window.events
+                        ));
+                    }
                     report.device = Some(h);
                     return Ok(Some(h));
                 }
@@ -233,10 +247,16 @@ fn handshake(
     )
 }
 
-fn check_hello(h: &Hello, asked: &DetectConfig) -> Result<()> {
+/// Whether the device runs the configuration `asked`; with `window_up_to_device`, windows
+/// of fewer events than asked are accepted when they are all the device holds.
+fn check_hello(h: &Hello, asked: &DetectConfig, window_up_to_device: bool) -> Result<()> {
     if h.reply == HelloReply::Rejected {
         bail!("the device refused the configuration (a value out of its range): {asked:?}");
     }
+    let events = h.config.window.events;
+    let clamped = events < asked.window.events && events as u64 == u64::from(h.max_events);
+    let asked =
+        &if window_up_to_device && clamped { DetectConfig { window: h.config.window, ..*asked } } else { *asked };
     if h.config.window.events != asked.window.events {
         bail!(
             "the device holds at most {} events per window; {} were asked (use --events-per-window {} or less)",

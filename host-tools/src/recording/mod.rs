@@ -242,16 +242,19 @@ impl Iterator for Recording {
     }
 }
 
-/// Parses a sensor size: `WxH` (e.g. `346x260`) or a preset name (`davis346`, `dvxplorer`).
+/// Parses a sensor size: `WxH` (e.g. `346x260`) or a preset name (`davis346`, `dvxplorer`,
+/// `imx636` or `evk4` for 1280x720, `genx320` for 320x320).
 pub fn parse_sensor(s: &str) -> Result<SensorSize, String> {
     match s.to_ascii_lowercase().as_str() {
         "davis346" | "davis" => return Ok(SensorSize::DAVIS346),
         "dvxplorer" | "dvx" => return Ok(SensorSize::DVXPLORER),
+        "imx636" | "evk4" => return Ok(SensorSize::new(1280, 720)),
+        "genx320" => return Ok(SensorSize::new(320, 320)),
         _ => {}
     }
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .ok_or_else(|| format!("'{s}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer"))?;
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| {
+        format!("'{s}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320")
+    })?;
     let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{s}'"))?;
     let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{s}'"))?;
     if w == 0 || h == 0 {

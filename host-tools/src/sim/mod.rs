@@ -133,20 +133,23 @@ pub struct SimConfig {
 }
 
 impl SimConfig {
-    /// A configuration from the presets: sensor `davis346` or `dvxplorer`, pattern `3x7`,
-    /// `3x9` or `4x11`. `None` for an unknown name.
+    /// A configuration from the presets: sensor `davis346`, `dvxplorer`, `imx636` (`evk4`) or
+    /// `genx320` ([`Camera::preset`]), pattern `3x7`, `3x9` or `4x11`. `None` for an unknown
+    /// name.
     pub fn preset(sensor: &str, pattern: &str, trajectory: Trajectory, light: Light, seed: u64) -> Option<Self> {
-        let camera = match sensor {
-            "davis346" => Camera::davis346(),
-            "dvxplorer" => Camera::dvxplorer(),
-            _ => return None,
-        };
+        let camera = Camera::preset(sensor)?;
         let board = Board::preset(pattern)?;
         // Far enough that the grid can sweep the view, near enough that circles stay several
         // pixels wide.
         let grid_w = (board.cols - 1) as f64 * board.spacing + 2.0 * board.radius;
-        let half_fov = (f64::from(camera.width) * 0.5 / camera.fx).atan();
-        let distance = grid_w / (FILL * 2.0 * half_fov.tan());
+        // On a sensor wider than 4:3 the grid spanning 0.7 of the width would reach past the
+        // top and bottom (a 4x11 grid on a 16:9 sensor: 89 % of the height, wholly in view in
+        // half the windows of a cone): the grid spans 0.7 of the width a 4:3 sensor of that
+        // height would have, as someone holding it in view would keep it. 4:3 sensors (both
+        // tangents agree within 0.3 %) and square ones are framed by their width.
+        let tan_x = f64::from(camera.width) * 0.5 / camera.fx;
+        let tan_y = f64::from(camera.height) * 0.5 / camera.fy;
+        let distance = grid_w / (FILL * 2.0 * tan_x.min(tan_y * 4.0 / 3.0));
         Some(Self {
             camera,
             board,
@@ -193,7 +196,8 @@ pub struct FrameTruth {
     pub circles: Vec<CircleTruth>,
 }
 
-/// Fraction of the sensor's width the grid spans at the typical distance.
+/// Fraction of the sensor's width (of a 4:3 sensor's width for a wider one) the grid spans at
+/// the typical distance.
 const FILL: f64 = 0.7;
 
 /// Points on a circle's outline used to find its projected centre and radius.

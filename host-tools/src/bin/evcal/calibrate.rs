@@ -219,6 +219,9 @@ fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::Se
     let rec = a.read.open(&a.input, a.quiet)?;
     let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.input, &rec, &a.read.options(), a.quiet)?;
     let cfg = a.core.config(sensor)?;
+    if !a.quiet {
+        eprintln!("evcal: {}", a.core.window_line(&cfg));
+    }
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);

@@ -61,14 +61,25 @@ impl ReadArgs {
 
 #[derive(Args, Clone)]
 pub struct CoreArgs {
-    /// Sensor size, WxH (e.g. 346x260) or davis346 / dvxplorer. Default: from the file, else
-    /// guessed from the largest coordinates (a note says so).
+    /// Sensor size, WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320. Default:
+    /// from the file, else guessed from the largest coordinates (a note says so).
     #[arg(long)]
     pub sensor: Option<String>,
-    /// Events per window (the paper: 4000; the firmware holds at most 4000).
-    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW as u32,
+    /// Events per window [default: scaled with the sensor, 4000 for 346x260; --help says how]
+    ///
+    /// Default: the E-Calib paper's 4000 for a DAVIS346 (346x260), scaled with the sensor's
+    /// linear size: 4000·√(W·H / (346·260)), rounded to a multiple of 500. 640x480
+    /// (DVXplorer): 7500; 1280x720 (IMX636, EVK4): 13000; 320x320 (GenX320): 4500. A larger
+    /// sensor fires more events a second (the board's outlines span more pixels and cross
+    /// more of them), so a window of a fixed number of events is shorter and each circle's
+    /// events sparser along its outline: on a simulated 640x480 sweep the finder labels the
+    /// grid by itself in 88 % of the windows of 4000 events, 96 % of 7500 (README: Windows
+    /// sized to the sensor). The value chosen is printed on standard error. Up to 32000 on
+    /// the host; `evcal replay` asks a device for at most what it holds (the firmware:
+    /// 4000), unless given this option.
+    #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
-    pub events_per_window: u32,
+    pub events_per_window: Option<u32>,
     /// Milliseconds of event time between window ticks (the paper: 33).
     #[arg(long, default_value_t = 33.333)]
     pub step_ms: f64,
@@ -109,7 +120,9 @@ impl CoreArgs {
         Ok(DetectConfig {
             sensor,
             window: WindowConfig {
-                events: self.events_per_window as usize,
+                events: self
+                    .events_per_window
+                    .map_or_else(|| detections::default_events_per_window(sensor), |n| n as usize),
                 step_us: (self.step_ms * 1000.0).round() as u64,
             },
             cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts.max(1), eps_t: self.eps_t },
@@ -123,6 +136,25 @@ impl CoreArgs {
             },
         })
     }
+}
+
+impl CoreArgs {
+    /// The line saying how windows are cut, for standard error: how many events, how often,
+    /// and whether that is the sensor's default (and how to change it).
+    pub fn window_line(&self, cfg: &DetectConfig) -> String {
+        window_line(cfg.window, cfg.sensor, self.events_per_window.is_some())
+    }
+}
+
+/// "windows: N events every S ms (...)" for `window` on `sensor`; `given`: set by
+/// `--events-per-window` rather than the sensor's default.
+pub fn window_line(window: WindowConfig, sensor: SensorSize, given: bool) -> String {
+    let why = if given {
+        "--events-per-window".to_string()
+    } else {
+        format!("default for a {}x{} sensor; --events-per-window to change", sensor.width, sensor.height)
+    };
+    format!("windows: {} events every {:.0} ms ({why})", window.events, window.step_us as f64 * 1e-3)
 }
 
 /// The sensor size: given, else from the file, else guessed from a pass over the events.

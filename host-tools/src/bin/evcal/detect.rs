@@ -28,6 +28,9 @@ pub fn run(a: DetectArgs) -> Result<()> {
     let notes_at_open = rec.notes();
     let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
     let cfg = a.core.config(sensor)?;
+    if !a.quiet {
+        eprintln!("evcal: {}", a.core.window_line(&cfg));
+    }
     let mut out = output(a.out.as_deref())?;
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut write_err: Option<anyhow::Error> = None;

@@ -54,8 +54,19 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         hello_timeout: Duration::from_secs_f64(a.hello_timeout),
         retry_timeout: Duration::from_millis(a.retry_ms),
         all_events: a.all_events,
+        // The sensor's default is the host's choice: a device holding fewer (the firmware's
+        // 4000) cuts windows of what it holds. A size the user gave is theirs: an error.
+        window_up_to_device: a.core.events_per_window.is_none(),
         ..ReplayOptions::default()
     };
+    if !a.quiet {
+        let line = a.core.window_line(&cfg);
+        if opts.window_up_to_device {
+            eprintln!("evcal: {line}, or as many as the device holds");
+        } else {
+            eprintln!("evcal: {line}");
+        }
+    }
     let stop = stop_on_ctrl_c();
     let mut link = a.link.open()?;
     let mut out = output(a.out.as_deref())?;
