@@ -12,7 +12,7 @@
 //! centres) and prints how the detected centres err against the truth. `--no-edge-shift` and
 //! `--no-smoothing` switch those steps off, as `evcal calibrate`'s flags of the same names do.
 
-use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
     detections::{self, read_jsonl, WindowRecord},
@@ -139,12 +139,11 @@ fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize) 
         std::process::exit(1)
     });
     let mut windows = Vec::new();
-    detections::run(rec, DetectConfig::new(sensor), |d| windows.push(WindowRecord::from_detection(d))).unwrap_or_else(
-        |e| {
+    detections::run(rec, detections::host_config(sensor), |d| windows.push(WindowRecord::from_detection(d)))
+        .unwrap_or_else(|e| {
             eprintln!("{}: {e}", path.display());
             std::process::exit(1)
-        },
-    );
+        });
     if let Some(f) = file {
         let _ = std::fs::create_dir_all(f.parent().unwrap_or(Path::new(".")));
         let text: String = windows.iter().map(|w| w.to_json_line() + "\n").collect();
