@@ -387,7 +387,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
     let mut advice = advice(&calibration, &coverage);
-    advice.extend(focal_warning(&calibration));
+    advice.extend(focal_warning(&calibration, &coverage));
     let failure = verdict(&calibration);
     Ok(Outcome {
         selection,
@@ -412,17 +412,29 @@ pub const FOCAL_WARN_RELATIVE: f64 = 1e-3;
 pub const FAILED_RELATIVE: f64 = 0.05;
 
 /// A warning when σ(fx) or σ(fy) exceeds [`FOCAL_WARN_RELATIVE`], with the motion that fixes
-/// the focal length.
-fn focal_warning(cal: &Calibration) -> Option<String> {
+/// the focal length: more tilt when the views lack it, else more of the sensor and more
+/// views.
+fn focal_warning(cal: &Calibration, coverage: &Coverage) -> Option<String> {
     let k = &cal.intrinsics;
     let rel = (cal.std_dev[0] / k.fx.abs()).max(cal.std_dev[1] / k.fy.abs());
     (rel > FOCAL_WARN_RELATIVE).then(|| {
         let tilt = crate::select::TiltSpread::of(cal);
+        let fix = if tilt.max_deg < crate::select::GOOD_TILT_DEG {
+            format!(
+                "the views tilt the target by at most {:.0}°: with little tilt the focal length is told apart from the distance only by how the image grows as the target comes nearer. Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
+                tilt.max_deg
+            )
+        } else {
+            format!(
+                "{} views, their points on {:.0} % of the sensor: record longer, tilting the target 20–40° to each side while it sweeps the whole sensor (in brighter light if the grid was missed in many windows)",
+                cal.views.len(),
+                100.0 * coverage.covered
+            )
+        };
         format!(
-            "the focal length is weakly fixed: fx ±{:.2} %, fy ±{:.2} % (1σ; evcal aims at 0.1 %). The views tilt the target by at most {:.0}°: with little tilt the focal length is told apart from the distance only by how the image grows as the target comes nearer. Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
+            "the focal length is weakly fixed: fx ±{:.2} %, fy ±{:.2} % (1σ; evcal aims at 0.1 %); {fix}",
             100.0 * cal.std_dev[0] / k.fx.abs(),
             100.0 * cal.std_dev[1] / k.fy.abs(),
-            tilt.max_deg
         )
     })
 }
@@ -543,9 +555,10 @@ mod test {
         };
         let views = calib::synthetic_views(&truth, 12, 0.02, 3);
         let mut cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
-        assert!(verdict(&cal).is_none() && focal_warning(&cal).is_none(), "{:?}", cal.std_dev);
+        let coverage = Coverage::of(&views.iter().collect::<Vec<_>>(), [346, 260]);
+        assert!(verdict(&cal).is_none() && focal_warning(&cal, &coverage).is_none(), "{:?}", cal.std_dev);
         cal.std_dev[0] = 0.004 * truth.fx;
-        let w = focal_warning(&cal).expect("a warning");
+        let w = focal_warning(&cal, &coverage).expect("a warning");
         assert!(w.contains("fx ±0.40 %") && w.contains("tilt"), "{w}");
         assert!(verdict(&cal).is_none());
         cal.std_dev[0] = 1.27 * truth.fx;
