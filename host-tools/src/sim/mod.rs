@@ -389,10 +389,26 @@ impl Simulator {
         2.0 * fastest + 20.0
     }
 
-    /// Simulates until `seconds` since the start, handing events in time order to `sink`
-    /// in batches. Call again to continue. Returns the number of events produced.
-    pub fn run_until(&mut self, seconds: f64, mut sink: impl FnMut(&[Event])) -> u64 {
-        self.run_until_or_stop(seconds, |b| {
+    /// Simulates until `seconds` since the start, the end of the recording, handing events in
+    /// time order to `sink` in batches; the last step ends at `seconds` and every event is
+    /// handed. Returns the number of events produced.
+    ///
+    /// Calling it again continues, but as a new piece: the timestamp jitter of its first events
+    /// can put them before the last ones of the call before. To simulate a recording in
+    /// pieces (for progress), use [`run_part`](Self::run_part), which gives exactly the events
+    /// of one call, in order.
+    pub fn run_until(&mut self, seconds: f64, sink: impl FnMut(&[Event])) -> u64 {
+        self.run_part(seconds, seconds, sink)
+    }
+
+    /// Simulates a recording that ends at `end` seconds up to `seconds` at least, handing
+    /// `sink` (in time order) the events that no later step can precede; at `end`, every
+    /// event. Steps are cut only at `end`, and events wait across calls for the jitter's
+    /// horizon, so that `run_part(s1, end)`, `run_part(s2, end)`, …, `run_part(end, end)`
+    /// hand exactly the events of [`run_until(end)`](Self::run_until), in order, whatever
+    /// the pieces. Returns the number of events handed.
+    pub fn run_part(&mut self, seconds: f64, end: f64, mut sink: impl FnMut(&[Event])) -> u64 {
+        self.run(seconds, end, |b| {
             sink(b);
             std::ops::ControlFlow::Continue(())
         })
@@ -401,11 +417,14 @@ impl Simulator {
     /// As [`run_until`](Self::run_until), but stops early at the end of the step in which
     /// `sink` returns `Break`, handing it the events still pending (those a later step's
     /// timestamp jitter could still have overtaken) first.
-    pub fn run_until_or_stop(
-        &mut self,
-        seconds: f64,
-        mut sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>,
-    ) -> u64 {
+    pub fn run_until_or_stop(&mut self, seconds: f64, sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>) -> u64 {
+        self.run(seconds, seconds, sink)
+    }
+
+    /// Simulates a recording ending at `end` up to `seconds` (see [`run_part`](Self::run_part)),
+    /// stopping as [`run_until_or_stop`](Self::run_until_or_stop) does.
+    fn run(&mut self, seconds: f64, end: f64, mut sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>) -> u64 {
+        let seconds = seconds.min(end);
         let cam = self.cfg.camera;
         let (w, npix) = (usize::from(cam.width), self.pixels.len());
         let px = self.cfg.pixel;
@@ -419,7 +438,7 @@ impl Simulator {
         let noise_rate = px.background_hz * npix as f64;
         while self.t < seconds {
             let speed = self.speed_bound(self.t);
-            let dt = (0.33 / speed).clamp(5e-6, 2e-3).min(seconds - self.t).max(1e-7);
+            let dt = (0.33 / speed).clamp(5e-6, 2e-3).min(end - self.t).max(1e-7);
             let (t0, t1) = (self.t, self.t + dt);
             let pose = self.pose_at(t1);
             let origin: [f64; 3] = pose.centre().into();
@@ -459,7 +478,7 @@ impl Simulator {
             merge_sorted(&mut self.pending, &fresh, key);
             // Jitter is at most `jitter_cap`: events before t1 − cap can no longer be
             // overtaken by later ones.
-            let horizon = self.to_us(if t1 >= seconds { f64::INFINITY } else { t1 - jitter_cap });
+            let horizon = self.to_us(if t1 >= end { f64::INFINITY } else { t1 - jitter_cap });
             let ready = self.pending.partition_point(|e| e.t_us < horizon);
             let mut stop = false;
             if ready > 0 {
@@ -987,5 +1006,19 @@ mod tests {
             assert!(c.radius_px > 3.0 && c.radius_px < 15.0, "{}", c.radius_px);
         }
         assert!(t.circles.iter().filter(|c| c.in_view).count() >= 30);
+    }
+
+    #[test]
+    fn a_run_in_pieces_gives_the_events_of_one_run_in_order() {
+        let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Low, 7).unwrap();
+        let mut sim = Simulator::new(cfg);
+        let mut pieces = Vec::new();
+        for k in 1..=9 {
+            sim.run_part(0.011 * k as f64, 0.1, |b| pieces.extend_from_slice(b));
+        }
+        sim.run_part(0.1, 0.1, |b| pieces.extend_from_slice(b));
+        let (one, _) = short(Light::Low, 0.1);
+        assert!(one.windows(2).all(|w| w[0].t_us <= w[1].t_us));
+        assert!(pieces == one, "{} events in pieces, {} in one go", pieces.len(), one.len());
     }
 }
