@@ -228,6 +228,7 @@ pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)]) -> serde_json:
         "board": { "rows": c.board.rows, "cols": c.board.cols, "spacing": c.board.spacing, "radius": c.board.radius },
         "trajectory": c.trajectory.name(),
         "light": c.light.name(),
+        "pixel": c.pixel,
         "seed": c.seed,
         "windows": windows.iter().map(|(seq, t)| serde_json::json!({
             "seq": seq, "t_ref_us": t.t_us, "rvec": t.rvec, "tvec": t.tvec, "circles": t.circles,
