@@ -10,7 +10,11 @@
 //! * timestamps jitter (more in low light);
 //! * background activity fires at random pixels and times, hot pixels fire all the time;
 //! * in low light the scene is darker, so the dark current flattens the contrast, and noise
-//!   rates are much higher.
+//!   rates are much higher;
+//! * optionally ([`PixelModel::physical`]), the physics of a real pixel: a photoreceptor that
+//!   low-passes the log intensity with a cutoff proportional to the light it receives (dark
+//!   pixels lag by milliseconds, OFF edges into the dark more than ON edges), leak events and
+//!   shot noise that grows as light falls. The presets leave it out (an ideal pixel).
 //!
 //! Time advances in steps short enough that no edge moves more than a third of a pixel;
 //! crossing times are interpolated within a step. Pixels far from every edge are skipped until
@@ -73,6 +77,35 @@ pub struct PixelModel {
     pub illumination: f64,
     /// Dark signal in the same units as illumination × reflectance: flattens dark contrast.
     pub dark: f64,
+    /// Photoreceptor bandwidth: the cutoff frequency, Hz, of a pixel receiving intensity 1
+    /// (illumination 1 on a perfect white); `None` for an unlimited bandwidth (the pixel
+    /// follows its log intensity at once, as the presets of [`for_light`](Self::for_light)).
+    ///
+    /// A real photoreceptor is a first-order low-pass filter on log intensity whose cutoff is
+    /// proportional to its photocurrent (Lichtsteiner et al. 2008; v2e): at intensity
+    /// I = illumination × reflectance + [`dark`](Self::dark) the pixel's filtered level `y`
+    /// follows its log intensity `x = ln I` as dy/dt = (x − y)/τ with
+    /// τ = 1 / (2π · photoreceptor_hz · I). The dark signal is the floor: even a black pixel
+    /// answers, at photoreceptor_hz × dark. Events fire on the filtered level, so a pixel
+    /// going dark (an OFF edge into a printed circle) lags more than one going bright, and
+    /// every lag grows as the light falls. At 300 Hz in office light the board's paper
+    /// (reflectance 0.85) answers with τ ≈ 0.6 ms and its ink (0.06) with τ ≈ 8 ms.
+    #[serde(default)]
+    pub photoreceptor_hz: Option<f64>,
+    /// Mean rate of leak events per pixel, Hz: the pixel's memorised level leaks so that a
+    /// still pixel fires an ON event every 1/rate seconds (v2e's leak: the level an event
+    /// counts from creeps down by a threshold per period). 0: none.
+    #[serde(default)]
+    pub leak_hz: f64,
+    /// Pixel-to-pixel spread of the leak rates: standard deviation of their log10, decades.
+    #[serde(default)]
+    pub leak_spread_decades: f64,
+    /// Rate of shot-noise events per pixel in darkness, Hz. Photon and dark-current shot noise
+    /// fires more in dark pixels: the rate at intensity I is this × (1 − 0.75·min(I, 1)), a
+    /// quarter of it on a perfect white in office light (v2e's law). Random polarity; the
+    /// events do not move the pixel's reference. 0: none.
+    #[serde(default)]
+    pub shot_noise_hz: f64,
 }
 
 impl PixelModel {
@@ -89,6 +122,10 @@ impl PixelModel {
                 hot_hz: 400.0,
                 illumination: 1.0,
                 dark: 0.004,
+                photoreceptor_hz: None,
+                leak_hz: 0.0,
+                leak_spread_decades: 0.0,
+                shot_noise_hz: 0.0,
             },
             Light::Low => Self {
                 threshold: 0.25,
@@ -100,8 +137,42 @@ impl PixelModel {
                 hot_hz: 800.0,
                 illumination: 0.05,
                 dark: 0.004,
+                photoreceptor_hz: None,
+                leak_hz: 0.0,
+                leak_spread_decades: 0.0,
+                shot_noise_hz: 0.0,
             },
         }
+    }
+
+    /// The model for a lighting preset with a real pixel's physics: a photoreceptor of
+    /// `photoreceptor_hz` at intensity 1 ([`photoreceptor_hz`](Self::photoreceptor_hz);
+    /// `f64::INFINITY` for an unlimited bandwidth), leak events at 0.1 Hz per pixel spread
+    /// over a third of a decade, and shot noise at 1 Hz per pixel in darkness (a DAVIS346's
+    /// order of magnitude; v2e's defaults are alike). Set the fields to change any of it.
+    pub fn physical(light: Light, photoreceptor_hz: f64) -> Self {
+        Self {
+            photoreceptor_hz: (photoreceptor_hz < f64::INFINITY).then_some(photoreceptor_hz.max(0.0)),
+            leak_hz: 0.1,
+            leak_spread_decades: 0.33,
+            shot_noise_hz: 1.0,
+            ..Self::for_light(light)
+        }
+    }
+
+    /// The cutoff at intensity 1 as the pixel update takes it: infinite for an unlimited
+    /// bandwidth, never below 1 µHz (a zero cutoff would freeze the pixel).
+    fn cutoff_hz(&self) -> f64 {
+        match self.photoreceptor_hz {
+            Some(f) if f.is_finite() => f.max(1e-6),
+            _ => f64::INFINITY,
+        }
+    }
+
+    /// Whether each pixel's update needs the physics (a finite photoreceptor or leak): if
+    /// not, the simpler update of an ideal pixel runs, giving the presets' events bit for bit.
+    fn physics(&self) -> bool {
+        self.cutoff_hz().is_finite() || self.leak_hz > 0.0
     }
 }
 
@@ -219,6 +290,8 @@ pub struct Simulator {
     chunk_next: Vec<f64>,
     hot: Vec<u32>,
     rng: ChaCha8Rng,
+    /// The physics' random draws (leak rates, shot noise), apart from `rng`.
+    phys_rng: ChaCha8Rng,
     fov_half: [f64; 2],
     /// Simulated time reached, seconds since start.
     t: f64,
@@ -227,6 +300,16 @@ pub struct Simulator {
     pending: Vec<Event>,
     started: bool,
 }
+
+/// Mixed into the seed of the physics' random stream.
+const PHYSICS_SEED: u64 = 0x9e37_79b9_7f4a_7c15;
+
+/// Shot noise on a perfect white in office light, relative to darkness (v2e's factor).
+const SHOT_AT_FULL_LIGHT: f64 = 0.25;
+
+/// Longest a skipped pixel with leak waits before it is looked at again, s: bounds how far
+/// the leak can move its reference unseen (see [`quiet_for`]).
+const LEAK_LOOK_S: f64 = 0.5;
 
 /// Rows in a chunk of pixels, the unit of work shared among threads: small enough that the
 /// threads share the rows an edge crosses evenly (the board covers a part of the image),
@@ -269,6 +352,16 @@ struct PixelState {
     off: f64,
     /// Time of the last event, s.
     last: f64,
+    /// The photoreceptor's output, log units: `level` filtered by the photoreceptor's low-pass
+    /// ([`PixelModel::photoreceptor_hz`]); the level events are fired from. Equal to `level`
+    /// without physics.
+    lp: f64,
+    /// Time of the last evaluation, s: a skipped pixel's filter and leak are brought from there
+    /// to the step that next evaluates it. Unused without physics.
+    evaluated: f64,
+    /// How fast the reference leaks down, log units per second (the leak rate times the ON
+    /// threshold).
+    leak: f64,
 }
 
 impl Simulator {
@@ -292,12 +385,27 @@ impl Simulator {
                 on: thr.sample(&mut rng).max(floor),
                 off: thr.sample(&mut rng).max(floor),
                 last: f64::NEG_INFINITY,
+                lp: 0.0,
+                evaluated: 0.0,
+                leak: 0.0,
             })
-            .collect();
+            .collect::<Vec<_>>();
         let n_hot = ((w * h) as f64 * cfg.pixel.hot_fraction).round() as usize;
         let hot = (0..n_hot).map(|_| rng.random_range(0..(w * h) as u32)).collect();
         let fov_half =
             [(f64::from(cam.width) * 0.5 / cam.fx).atan() * 0.9, (f64::from(cam.height) * 0.5 / cam.fy).atan() * 0.9];
+        // The physics draws from a stream of its own, so that the presets (no physics) draw
+        // exactly what they drew before it existed.
+        let mut phys_rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ PHYSICS_SEED);
+        let mut pixels = pixels;
+        if cfg.pixel.leak_hz > 0.0 && cfg.pixel.leak_hz.is_finite() {
+            let spread = cfg.pixel.leak_spread_decades;
+            let spread = if spread.is_finite() { spread.max(0.0) } else { 0.0 };
+            for st in &mut pixels {
+                let n: f64 = rand_distr::StandardNormal.sample(&mut phys_rng);
+                st.leak = cfg.pixel.leak_hz * 10f64.powf(spread * n.clamp(-4.0, 4.0)) * st.on;
+            }
+        }
         let scene = Scene::new(cfg.board, cfg.clutter, cfg.seed);
         let chunks = h.div_ceil(CHUNK_ROWS);
         Self {
@@ -309,6 +417,7 @@ impl Simulator {
             chunk_next: vec![0.0; chunks],
             hot,
             rng,
+            phys_rng,
             fov_half,
             t: 0.0,
             stepped: 0.0,
@@ -393,10 +502,26 @@ impl Simulator {
         2.0 * fastest + 20.0
     }
 
-    /// Simulates until `seconds` since the start, handing events in time order to `sink`
-    /// in batches. Call again to continue. Returns the number of events produced.
-    pub fn run_until(&mut self, seconds: f64, mut sink: impl FnMut(&[Event])) -> u64 {
-        self.run_until_or_stop(seconds, |b| {
+    /// Simulates until `seconds` since the start, the end of the recording, handing events in
+    /// time order to `sink` in batches; the last step ends at `seconds` and every event is
+    /// handed. Returns the number of events produced.
+    ///
+    /// Calling it again continues, but as a new piece: the timestamp jitter of its first events
+    /// can put them before the last ones of the call before. To simulate a recording in
+    /// pieces (for progress), use [`run_part`](Self::run_part), which gives exactly the events
+    /// of one call, in order.
+    pub fn run_until(&mut self, seconds: f64, sink: impl FnMut(&[Event])) -> u64 {
+        self.run_part(seconds, seconds, sink)
+    }
+
+    /// Simulates a recording that ends at `end` seconds up to `seconds` at least, handing
+    /// `sink` (in time order) the events that no later step can precede; at `end`, every
+    /// event. Steps are cut only at `end`, and events wait across calls for the jitter's
+    /// horizon, so that `run_part(s1, end)`, `run_part(s2, end)`, …, `run_part(end, end)`
+    /// hand exactly the events of [`run_until(end)`](Self::run_until), in order, whatever
+    /// the pieces. Returns the number of events handed.
+    pub fn run_part(&mut self, seconds: f64, end: f64, mut sink: impl FnMut(&[Event])) -> u64 {
+        self.run(seconds, end, |b| {
             sink(b);
             std::ops::ControlFlow::Continue(())
         })
@@ -405,11 +530,14 @@ impl Simulator {
     /// As [`run_until`](Self::run_until), but stops early at the end of the step in which
     /// `sink` returns `Break`, handing it the events still pending (those a later step's
     /// timestamp jitter could still have overtaken) first.
-    pub fn run_until_or_stop(
-        &mut self,
-        seconds: f64,
-        mut sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>,
-    ) -> u64 {
+    pub fn run_until_or_stop(&mut self, seconds: f64, sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>) -> u64 {
+        self.run(seconds, seconds, sink)
+    }
+
+    /// Simulates a recording ending at `end` up to `seconds` (see [`run_part`](Self::run_part)),
+    /// stopping as [`run_until_or_stop`](Self::run_until_or_stop) does.
+    fn run(&mut self, seconds: f64, end: f64, mut sink: impl FnMut(&[Event]) -> std::ops::ControlFlow<()>) -> u64 {
+        let seconds = seconds.min(end);
         let cam = self.cfg.camera;
         let (w, npix) = (usize::from(cam.width), self.pixels.len());
         let px = self.cfg.pixel;
@@ -423,7 +551,7 @@ impl Simulator {
         let noise_rate = px.background_hz * npix as f64;
         while self.t < seconds {
             let speed = self.speed_bound(self.t);
-            let dt = (0.33 / speed).clamp(5e-6, 2e-3).min(seconds - self.t).max(1e-7);
+            let dt = (0.33 / speed).clamp(5e-6, 2e-3).min(end - self.t).max(1e-7);
             let (t0, t1) = (self.t, self.t + dt);
             let pose = self.pose_at(t1);
             let origin: [f64; 3] = pose.centre().into();
@@ -456,6 +584,19 @@ impl Simulator {
                     fresh.push(self.stamp(self.hot[k] as usize, t, pol, w));
                 }
             }
+            // Shot noise: candidates at the darkest pixels' rate, each kept with its pixel's
+            // share of it (its level is the one of its last evaluation: a skipped pixel's is
+            // flat).
+            let n_shot = noise(&mut self.phys_rng, px.shot_noise_hz * npix as f64);
+            for _ in 0..n_shot {
+                let p = self.phys_rng.random_range(0..npix);
+                let t = self.phys_rng.random_range(t0..t1);
+                let pol = self.phys_rng.random_bool(0.5);
+                let keep = 1.0 - (1.0 - SHOT_AT_FULL_LIGHT) * self.pixels[p].level.exp().min(1.0);
+                if self.phys_rng.random_bool(keep.clamp(0.0, 1.0)) {
+                    fresh.push(self.stamp(p, t, pol, w));
+                }
+            }
             // Events with equal keys are equal, so any sort gives the same stream. The pending
             // events are sorted already: sort the fresh ones and merge.
             let key = |e: &Event| (e.t_us, e.y, e.x, e.polarity);
@@ -463,7 +604,7 @@ impl Simulator {
             merge_sorted(&mut self.pending, &fresh, key);
             // Jitter is at most `jitter_cap`: events before t1 − cap can no longer be
             // overtaken by later ones.
-            let horizon = self.to_us(if t1 >= seconds { f64::INFINITY } else { t1 - jitter_cap });
+            let horizon = self.to_us(if t1 >= end { f64::INFINITY } else { t1 - jitter_cap });
             let ready = self.pending.partition_point(|e| e.t_us < horizon);
             let mut stop = false;
             if ready > 0 {
@@ -561,6 +702,9 @@ impl Simulator {
                 }
             }
             st.level = l;
+            // Settled: the filter's lag after a jump is not traced.
+            st.lp = l;
+            st.evaluated = t;
             st.reference = reference;
             st.last = f64::NEG_INFINITY;
         }
@@ -777,6 +921,7 @@ impl Simulator {
     ) -> Crossings {
         let mut events = Vec::new();
         let refractory = self.cfg.pixel.refractory_s;
+        let (physics, cutoff_hz) = (self.cfg.pixel.physics(), self.cfg.pixel.cutoff_hz());
         let margin = EDGE_MARGIN_PX;
         let mut earliest = f64::INFINITY;
         for (i, (st, next)) in states.iter_mut().zip(next_eval.iter_mut()).enumerate() {
@@ -786,29 +931,17 @@ impl Simulator {
             }
             let p = base + i;
             let (l1, dist) = self.log_intensity(to_board, origin, p);
-            let l0 = st.level;
-            loop {
-                let (level, sign) = if l1 - st.reference >= st.on {
-                    (st.reference + st.on, 1.0)
-                } else if st.reference - l1 >= st.off {
-                    (st.reference - st.off, -1.0)
-                } else {
-                    break;
-                };
-                let span = l1 - l0;
-                let frac = if span.abs() > 1e-12 { ((level - l0) / span).clamp(0.0, 1.0) } else { 1.0 };
-                let tc = (t0 + frac * (t1 - t0)).max(st.last + refractory);
-                if tc > t1 {
-                    break; // still blind: fires in a later step if the change persists
-                }
-                events.push((p, tc, sign));
-                st.reference = level;
-                st.last = tc;
+            if physics {
+                physical_update(st, l1, t0, t1, refractory, cutoff_hz, p, &mut events);
+                // Beyond an edge's zone the input is flat, but the filter may still be settling
+                // or the reference leaking towards a crossing: looked at again by then.
+                *next = if dist > margin { t1 + quiet_for(st, cutoff_hz, (dist - margin) / speed) } else { t1 };
+            } else {
+                ideal_update(st, l1, t0, t1, refractory, p, &mut events);
+                // Beyond an edge's blurred zone a pixel is flat until an edge could have
+                // travelled the difference.
+                *next = if dist > margin { t1 + (dist - margin) / speed } else { t1 };
             }
-            st.level = l1;
-            // Beyond an edge's blurred zone a pixel is flat until an edge could have travelled
-            // the difference.
-            *next = if dist > margin { t1 + (dist - margin) / speed } else { t1 };
             earliest = earliest.min(*next);
         }
         *chunk_next = earliest;
@@ -820,6 +953,176 @@ impl Simulator {
         let t = t_us.saturating_sub(self.cfg.start_us) as f64 * 1e-6;
         truth(&self.cfg, &self.pose_at(t), t_us)
     }
+}
+
+/// An ideal pixel (unlimited bandwidth, no leak) from `t0` to `t1`, its log intensity moving
+/// linearly to `l1`: the threshold crossings of the log intensity itself, interpolated within
+/// the step, pushed to `events` as pixel `p`'s.
+fn ideal_update(st: &mut PixelState, l1: f64, t0: f64, t1: f64, refractory: f64, p: usize, events: &mut Crossings) {
+    let l0 = st.level;
+    loop {
+        let (level, sign) = if l1 - st.reference >= st.on {
+            (st.reference + st.on, 1.0)
+        } else if st.reference - l1 >= st.off {
+            (st.reference - st.off, -1.0)
+        } else {
+            break;
+        };
+        let span = l1 - l0;
+        let frac = if span.abs() > 1e-12 { ((level - l0) / span).clamp(0.0, 1.0) } else { 1.0 };
+        let tc = (t0 + frac * (t1 - t0)).max(st.last + refractory);
+        if tc > t1 {
+            break; // still blind: fires in a later step if the change persists
+        }
+        events.push((p, tc, sign));
+        st.reference = level;
+        st.last = tc;
+    }
+    st.level = l1;
+    st.lp = l1;
+}
+
+/// The photoreceptor's time constant over a step in which the log intensity moves linearly
+/// from `l0` to `l1`, s ([`PixelModel::photoreceptor_hz`]; 0 for an unlimited bandwidth).
+/// The filter's rate is proportional to the intensity, so its mean over the step is taken: the
+/// logarithmic mean of the intensities at the ends.
+fn tau_over(cutoff_hz: f64, l0: f64, l1: f64) -> f64 {
+    if !cutoff_hz.is_finite() {
+        return 0.0;
+    }
+    let (i0, i1) = (l0.exp(), l1.exp());
+    let mean = if (l1 - l0).abs() > 1e-9 { (i1 - i0) / (l1 - l0) } else { 0.5 * (i0 + i1) };
+    1.0 / (std::f64::consts::TAU * cutoff_hz * mean)
+}
+
+/// The photoreceptor's output `h` seconds into a step that starts at `y0` with input
+/// `x0 + s·h`: the exact solution of dy/dt = (x − y)/τ for a linear input,
+/// y = x0 + s·(h − τ) + (y0 − x0 + s·τ)·e^(−h/τ), written with expm1 so that a slow filter
+/// (τ of seconds in a step of microseconds) keeps its precision. τ = 0 follows the input.
+fn filtered(y0: f64, x0: f64, s: f64, tau: f64, h: f64) -> f64 {
+    if tau <= 0.0 {
+        return x0 + s * h;
+    }
+    y0 + (x0 - y0 - s * tau) * -(-h / tau).exp_m1() + s * h
+}
+
+/// Bisections that place a crossing within a step: 2⁻²⁴ of a step of at most 2 ms is far
+/// below the timestamps' microsecond.
+const CROSSING_ITERATIONS: usize = 24;
+
+/// A pixel with physics ([`PixelModel::physics`]) from `t0` to `t1`, its log intensity moving
+/// linearly to `l1`: its photoreceptor filtered exactly over the step, its reference leaking,
+/// and the threshold crossings of the filtered level pushed to `events` as pixel `p`'s.
+#[allow(clippy::too_many_arguments)]
+fn physical_update(
+    st: &mut PixelState,
+    l1: f64,
+    t0: f64,
+    t1: f64,
+    refractory: f64,
+    cutoff_hz: f64,
+    p: usize,
+    events: &mut Crossings,
+) {
+    let l0 = st.level;
+    if st.evaluated < t0 {
+        // Skipped since: its input stayed at its level, and no crossing was due (quiet_for).
+        let gap = t0 - st.evaluated;
+        st.lp = filtered(st.lp, l0, 0.0, tau_over(cutoff_hz, l0, l0), gap);
+        st.reference -= st.leak * gap;
+    }
+    let dt = (t1 - t0).max(0.0);
+    let s = if dt > 0.0 { (l1 - l0) / dt } else { 0.0 };
+    let tau = tau_over(cutoff_hz, l0, l1);
+    let (y0, k) = (st.lp, st.leak);
+    // The leak moves the reference down at k; within the step the reference is held and the
+    // level raised instead, z = y + k·h, so that crossings are those of one curve.
+    let z = |h: f64| filtered(y0, l0, s, tau, h) + k * h;
+    // Without a filter the step ends at l1 itself, not at l0 + s·dt a rounding away: the
+    // ideal pixel's comparisons, bit for bit.
+    let y1 = if tau <= 0.0 { l1 } else { filtered(y0, l0, s, tau, dt) };
+    let z1 = y1 + k * dt;
+    let mut from = 0.0;
+    loop {
+        let (level, sign) = if z1 - st.reference >= st.on {
+            (st.reference + st.on, 1.0)
+        } else if st.reference - z1 >= st.off {
+            (st.reference - st.off, -1.0)
+        } else {
+            break;
+        };
+        let h = if tau <= 0.0 {
+            // Linear: interpolated as the ideal pixel does.
+            let (za, span) = (z(from), z1 - z(from));
+            let frac = if span.abs() > 1e-12 { ((level - za) / span).clamp(0.0, 1.0) } else { 1.0 };
+            from + frac * (dt - from)
+        } else {
+            // z(from) has not reached the level, z(dt) has.
+            let (mut lo, mut hi) = (from, dt);
+            for _ in 0..CROSSING_ITERATIONS {
+                let mid = 0.5 * (lo + hi);
+                if (z(mid) - level) * sign >= 0.0 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            hi
+        };
+        let tc = (t0 + h).max(st.last + refractory);
+        if tc > t1 {
+            break; // still blind: fires in a later step
+        }
+        events.push((p, tc, sign));
+        st.reference = level;
+        st.last = tc;
+        from = h;
+    }
+    st.reference -= k * dt;
+    st.level = l1;
+    st.lp = y1;
+    st.evaluated = t1;
+}
+
+/// How long after its last evaluation a pixel whose input stays at its level fires no event,
+/// s, `most` at most: a lower bound of the time its settling filter and leaking reference
+/// take to a threshold crossing, so that it can be skipped until then.
+fn quiet_for(st: &PixelState, cutoff_hz: f64, most: f64) -> f64 {
+    let (l, y, k) = (st.level, st.lp, st.leak);
+    let tau = tau_over(cutoff_hz, l, l);
+    // When the settling filter, y(h) = l + (y − l)·e^(−h/τ), first reaches v from below and
+    // from above.
+    let up = |v: f64| {
+        if y >= v {
+            0.0
+        } else if v < l && tau > 0.0 {
+            tau * ((l - y) / (l - v)).ln()
+        } else {
+            f64::INFINITY
+        }
+    };
+    let down = |v: f64| {
+        if y <= v {
+            0.0
+        } else if v > l && tau > 0.0 {
+            tau * ((y - l) / (v - l)).ln()
+        } else {
+            f64::INFINITY
+        }
+    };
+    let on_level = st.reference + st.on;
+    // ON fires when y + k·h reaches on_level. y stays below max(y, l), which bounds h from
+    // the leak's side; and within a horizon the leak adds at most k·horizon, which bounds it
+    // from the filter's side. The leak's look-ahead is kept short so that bound stays tight.
+    let on = if k > 0.0 {
+        let horizon = most.min(LEAK_LOOK_S);
+        ((on_level - y.max(l)) / k).max(horizon.min(up(on_level - k * horizon)))
+    } else {
+        up(on_level)
+    };
+    // The leak only delays OFF.
+    let off = down(st.reference - st.off);
+    most.min(on).min(off).max(0.0)
 }
 
 /// Pixels in a band of work that [`in_bands`] hands out: small enough that the threads share
@@ -991,5 +1294,237 @@ mod tests {
             assert!(c.radius_px > 3.0 && c.radius_px < 15.0, "{}", c.radius_px);
         }
         assert!(t.circles.iter().filter(|c| c.in_view).count() >= 30);
+    }
+
+    /// A pixel with thresholds of 0.25 at rest at log intensity `l`, its last event long ago.
+    fn pixel_at(l: f64) -> PixelState {
+        PixelState {
+            level: l,
+            reference: l,
+            on: 0.25,
+            off: 0.25,
+            last: f64::NEG_INFINITY,
+            lp: l,
+            evaluated: 0.0,
+            leak: 0.0,
+        }
+    }
+
+    /// The events of a pixel at rest at `from` whose light steps to `to` at time 0, followed
+    /// for `seconds` in steps of `dt`, with the photoreceptor at `cutoff_hz`.
+    fn step_response(from: f64, to: f64, cutoff_hz: f64, seconds: f64, dt: f64) -> Crossings {
+        let mut st = pixel_at(from);
+        st.level = to; // the step: the input is at `to` from the first instant
+        let mut events = Vec::new();
+        let mut t = 0.0;
+        while t < seconds {
+            physical_update(&mut st, to, t, t + dt, 100e-6, cutoff_hz, 0, &mut events);
+            t += dt;
+        }
+        events
+    }
+
+    /// First-order filter: y = ΔL·(1 − e^(−t/τ)) reaches θ at τ·ln(ΔL / (ΔL − θ)).
+    fn first_order_delay(from: f64, to: f64, cutoff_hz: f64) -> f64 {
+        let tau = 1.0 / (std::f64::consts::TAU * cutoff_hz * to.exp());
+        let dl = (to - from).abs();
+        tau * (dl / (dl - 0.25)).ln()
+    }
+
+    #[test]
+    fn a_step_of_light_fires_after_the_first_order_filter_delay_and_later_in_the_dark() {
+        let mut last_delay = 0.0;
+        // The same contrast (a doubling of light) at falling light levels.
+        for bright in [0.8f64, 0.2, 0.05, 0.01] {
+            let (from, to) = ((bright / 2.0).ln(), bright.ln());
+            let expected = first_order_delay(from, to, 300.0);
+            let ev = step_response(from, to, 300.0, 20.0 * expected, expected / 7.3);
+            let (_, t, sign) = ev[0];
+            assert_eq!(sign, 1.0);
+            // The bisection places it within 2⁻²⁴ of a step.
+            assert!((t - expected).abs() < 2e-8 * expected, "light {bright}: {t} s, model {expected} s");
+            assert!(t > last_delay, "light {bright}: {t} s is not later than {last_delay} s");
+            last_delay = t;
+            // The filter settles at ΔL = ln 2: two thresholds, two events.
+            assert_eq!(ev.len(), 2, "light {bright}");
+        }
+        // 300 Hz at light 0.8: τ = 0.66 ms and the first event after 0.30 ms; at 0.01,
+        // τ = 53 ms and 24 ms.
+        assert!(last_delay > 0.02, "{last_delay}");
+    }
+
+    #[test]
+    fn off_edges_into_the_dark_lag_more_than_on_edges_into_the_bright() {
+        let (paper, ink) = ((scene::PAPER + 0.004f64).ln(), (scene::INK + 0.004f64).ln());
+        for (illumination, cutoff) in [(1.0f64, 300.0), (0.05, 300.0), (1.0, 1000.0)] {
+            let (paper, ink) = (paper + illumination.ln(), ink + illumination.ln());
+            let on = step_response(ink, paper, cutoff, 1.0, 1e-5);
+            let off = step_response(paper, ink, cutoff, 1.0, 1e-5);
+            assert!(on.iter().all(|e| e.2 > 0.0) && off.iter().all(|e| e.2 < 0.0));
+            // Each edge steps ln(0.854 / 0.064) = 2.6: ten thresholds.
+            assert_eq!((on.len(), off.len()), (10, 10));
+            let (t_on, t_off) = (on[0].1, off[0].1);
+            assert!((t_on - first_order_delay(ink, paper, cutoff)).abs() < 2e-6, "{t_on}");
+            assert!((t_off - first_order_delay(paper, ink, cutoff)).abs() < 2e-6, "{t_off}");
+            // The filter is as much faster as the light is brighter.
+            assert!((t_off / t_on - (paper - ink).exp()).abs() < 0.05 * (paper - ink).exp(), "{t_on} {t_off}");
+            // And the whole edge: its last event.
+            assert!(off[9].1 > 3.0 * on[9].1, "{} {}", on[9].1, off[9].1);
+        }
+    }
+
+    #[test]
+    fn unlimited_bandwidth_without_leak_is_the_ideal_pixel() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let (mut a, mut b) = (pixel_at(0.0), pixel_at(0.0));
+        let (mut ea, mut eb) = (Vec::new(), Vec::new());
+        let mut t = 0.0;
+        for _ in 0..10_000 {
+            let l1 = (a.level + rng.random_range(-0.3..0.3)).clamp(-4.0, 0.0);
+            let dt = rng.random_range(1e-5..1e-3);
+            ideal_update(&mut a, l1, t, t + dt, 100e-6, 0, &mut ea);
+            physical_update(&mut b, l1, t, t + dt, 100e-6, f64::INFINITY, 0, &mut eb);
+            t += dt;
+        }
+        assert!(ea.len() > 1000);
+        // The same crossings, interpolated from the step's start or from the crossing before.
+        same_times(&ea, &eb);
+        assert_eq!(a.level, b.level);
+        assert!((a.reference - b.reference).abs() < 1e-12);
+    }
+
+    #[test]
+    fn presets_have_no_physics_and_physical_at_infinite_bandwidth_has_none_but_noise() {
+        for light in [Light::Good, Light::Low] {
+            assert!(!PixelModel::for_light(light).physics());
+            let p = PixelModel::physical(light, f64::INFINITY);
+            assert_eq!(p.photoreceptor_hz, None);
+            assert!(PixelModel { leak_hz: 0.0, ..p }.cutoff_hz().is_infinite());
+            assert_eq!(PixelModel::physical(light, 300.0).photoreceptor_hz, Some(300.0));
+        }
+    }
+
+    /// A still pixel followed on a grid of `dt` steps, evaluated at every step or only when
+    /// [`quiet_for`] says it could fire (as the simulator skips it).
+    fn still_pixel(mut st: PixelState, cutoff_hz: f64, seconds: f64, dt: f64, skip: bool) -> (Crossings, usize) {
+        let (mut events, mut evaluations) = (Vec::new(), 0);
+        let l = st.level;
+        let mut next = 0.0;
+        let mut t = 0.0;
+        while t < seconds {
+            if !skip || next <= t + dt {
+                physical_update(&mut st, l, t, t + dt, 100e-6, cutoff_hz, 0, &mut events);
+                evaluations += 1;
+                next = t + dt + quiet_for(&st, cutoff_hz, 10.0);
+            }
+            t += dt;
+        }
+        (events, evaluations)
+    }
+
+    fn same_times(a: &Crossings, b: &Crossings) {
+        assert_eq!(a.len(), b.len(), "different numbers of events");
+        for (x, y) in a.iter().zip(b) {
+            assert_eq!(x.2, y.2);
+            assert!((x.1 - y.1).abs() < 1e-9, "{} vs {}", x.1, y.1);
+        }
+    }
+
+    #[test]
+    fn leak_fires_on_events_at_its_rate_and_skipping_misses_none() {
+        let mut st = pixel_at(-1.0);
+        st.leak = 0.2 * st.on; // 0.2 Hz
+        st.reference -= 0.1;
+        let (dense, _) = still_pixel(st, 300.0, 60.0, 1e-3, false);
+        let (skipped, evaluations) = still_pixel(st, 300.0, 60.0, 1e-3, true);
+        assert!(dense.iter().all(|e| e.2 > 0.0));
+        assert_eq!(dense.len(), 12); // the first after (0.25 − 0.1)/0.05 = 3 s, then every 5 s
+        assert!((dense[0].1 - 3.0).abs() < 1e-6 && (dense[1].1 - 8.0).abs() < 1e-6, "{:?}", &dense[..2]);
+        same_times(&dense, &skipped);
+        assert!(evaluations < 400, "{evaluations} evaluations in 60 s");
+    }
+
+    #[test]
+    fn a_settling_filter_fires_when_skipped_as_when_followed() {
+        // Just past an OFF edge into ink in a dim room: the filter has far to go (τ ≈ 0.1 s).
+        let mut st = pixel_at((0.05f64 * 0.06 + 0.004).ln());
+        st.lp = st.level + 2.0;
+        st.reference = st.lp - 0.1;
+        st.leak = 0.1 * st.on;
+        let (dense, _) = still_pixel(st, 300.0, 3.0, 1e-4, false);
+        let (skipped, evaluations) = still_pixel(st, 300.0, 3.0, 1e-4, true);
+        // (2 − 0.1) / 0.25: seven OFF events as it settles.
+        assert_eq!(dense.len(), 7);
+        assert!(dense.iter().all(|e| e.2 < 0.0));
+        same_times(&dense, &skipped);
+        assert!(evaluations < 100, "{evaluations} evaluations of 30000 steps");
+    }
+
+    fn run_physical(seconds: f64, pieces: &[f64]) -> Vec<Event> {
+        let mut cfg = SimConfig::preset("davis346", "3x7", Trajectory::Spiral, Light::Good, 3).unwrap();
+        cfg.pixel = PixelModel { shot_noise_hz: 5.0, ..PixelModel::physical(Light::Good, 200.0) };
+        let mut sim = Simulator::new(cfg);
+        let mut out = Vec::new();
+        for &t in pieces {
+            sim.run_part(t, seconds, |b| out.extend_from_slice(b));
+        }
+        sim.run_part(seconds, seconds, |b| out.extend_from_slice(b));
+        out
+    }
+
+    #[test]
+    fn a_run_in_pieces_gives_the_events_of_one_run_in_order() {
+        let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Low, 7).unwrap();
+        let mut sim = Simulator::new(cfg);
+        let mut pieces = Vec::new();
+        for k in 1..=9 {
+            sim.run_part(0.011 * k as f64, 0.1, |b| pieces.extend_from_slice(b));
+        }
+        sim.run_part(0.1, 0.1, |b| pieces.extend_from_slice(b));
+        let (one, _) = short(Light::Low, 0.1);
+        assert!(one.windows(2).all(|w| w[0].t_us <= w[1].t_us));
+        assert!(pieces == one, "{} events in pieces, {} in one go", pieces.len(), one.len());
+        // With the physics too.
+        let one = run_physical(0.06, &[]);
+        assert!(one.len() > 10_000, "{}", one.len());
+        assert!(one.windows(2).all(|w| w[0].t_us <= w[1].t_us));
+        assert!(run_physical(0.06, &[0.007, 0.02, 0.021, 0.05]) == one);
+    }
+
+    #[test]
+    fn physics_is_deterministic_and_inside_the_sensor() {
+        let a = run_physical(0.05, &[]);
+        assert!(a == run_physical(0.05, &[]));
+        let c = SimConfig::preset("davis346", "3x7", Trajectory::Spiral, Light::Good, 3).unwrap().camera;
+        assert!(a.iter().all(|e| e.x < c.width && e.y < c.height));
+    }
+
+    #[test]
+    fn shot_noise_fires_more_in_the_dark() {
+        let mut cfg = SimConfig::preset("davis346", "3x7", Trajectory::Spiral, Light::Good, 3).unwrap();
+        cfg.pixel = PixelModel { shot_noise_hz: 400.0, background_hz: 0.0, hot_fraction: 0.0, ..cfg.pixel };
+        let mut sim = Simulator::new(cfg);
+        let mut ev = Vec::new();
+        // Still scene: no motion is needed to count noise, but the trajectory moves; the board's
+        // pixels see paper or ink, and the noise at each is counted per pixel of each.
+        sim.run_until(0.02, |b| ev.extend_from_slice(b));
+        let w = usize::from(c_width(&sim));
+        let (mut dark, mut bright) = ((0usize, 0usize), (0usize, 0usize));
+        for (p, st) in sim.pixels.iter().enumerate() {
+            let n = ev.iter().filter(|e| usize::from(e.y) * w + usize::from(e.x) == p).count();
+            if st.level < (0.1f64).ln() {
+                dark = (dark.0 + n, dark.1 + 1);
+            } else if st.level > (0.7f64).ln() {
+                bright = (bright.0 + n, bright.1 + 1);
+            }
+        }
+        let rate = |(n, pixels): (usize, usize)| n as f64 / pixels.max(1) as f64 / 0.02;
+        let (rd, rb) = (rate(dark), rate(bright));
+        assert!(rd > 2.5 * rb, "dark {rd} Hz, bright {rb} Hz");
+        assert!((rd - 400.0 * (1.0 - 0.75 * 0.07)).abs() < 60.0, "dark {rd} Hz");
+    }
+
+    fn c_width(sim: &Simulator) -> u16 {
+        sim.config().camera.width
     }
 }

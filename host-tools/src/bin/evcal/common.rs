@@ -220,7 +220,8 @@ pub fn run_simulation(cfg: SimConfig, seconds: f64, quiet: bool) -> Result<(Vec<
     let mut t = 0.0;
     while t < seconds {
         t = (t + 0.05).min(seconds);
-        sim.run_until(t, |b| events.extend_from_slice(b));
+        // In pieces for the progress bar; the same events, in order, as in one go.
+        sim.run_part(t, seconds, |b| events.extend_from_slice(b));
         pb.set_position((t * 1000.0) as u64);
         pb.set_prefix(format!("{} events", events.len()));
     }
@@ -259,6 +260,7 @@ pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)]) -> serde_json:
         "board": { "rows": c.board.rows, "cols": c.board.cols, "spacing": c.board.spacing, "radius": c.board.radius },
         "trajectory": c.trajectory.name(),
         "light": c.light.name(),
+        "pixel": c.pixel,
         "seed": c.seed,
         "windows": windows.iter().map(|(seq, t)| serde_json::json!({
             "seq": seq, "t_ref_us": t.t_us, "rvec": t.rvec, "tvec": t.tvec, "circles": t.circles,

@@ -7,7 +7,7 @@ use evcal_core::{event::SensorSize, window::WindowConfig};
 use evcal_host::{
     detections,
     recording::{write_ecalib_h5, write_text},
-    sim::{Camera, Light, SimConfig, Trajectory},
+    sim::{Camera, Light, PixelModel, SimConfig, Trajectory},
 };
 use std::path::{Path, PathBuf};
 
@@ -47,11 +47,85 @@ pub struct SimulateArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+    #[command(flatten)]
+    pub pixel: PixelArgs,
+}
+
+/// The pixel's physics; each left out keeps the lighting preset's value (an ideal pixel:
+/// unlimited bandwidth, no leak, no shot noise).
+#[derive(Args)]
+#[command(next_help_heading = "Pixel physics")]
+pub struct PixelArgs {
+    /// Photoreceptor bandwidth: its low-pass cutoff, Hz, for a perfect white in office light
+    /// (--light good); a pixel receiving intensity I (illumination x reflectance) answers
+    /// with a cutoff I times this, so dark pixels (the printed circles, 6 % reflectance, or
+    /// anything under --light low, a twentieth of the light) lag by milliseconds and OFF edges
+    /// into a circle lag more than ON edges out of it. Real DVS pixels: hundreds of Hz to a few
+    /// kHz in office light. "inf" (the default) follows the light at once.
+    #[arg(long, value_name = "HZ")]
+    pub photoreceptor_hz: Option<f64>,
+    /// Contrast threshold, ON and OFF, in log intensity (0.25: a 28 % change fires an event).
+    #[arg(long, value_name = "LOG")]
+    pub threshold: Option<f64>,
+    /// Pixel-to-pixel standard deviation of the thresholds, log units.
+    #[arg(long, value_name = "LOG")]
+    pub mismatch: Option<f64>,
+    /// Leak events: mean rate per pixel, Hz, of the ON events a still pixel fires as its
+    /// memorised level leaks (real sensors: about 0.1 Hz); rates spread over a third of a
+    /// decade from pixel to pixel.
+    #[arg(long, value_name = "HZ")]
+    pub leak_hz: Option<f64>,
+    /// Shot noise: rate per pixel in darkness, Hz, of random ON/OFF events; a quarter of it
+    /// on a perfect white in office light, more the darker a pixel (real sensors under dim
+    /// light: about 1 Hz).
+    #[arg(long, value_name = "HZ")]
+    pub shot_noise_hz: Option<f64>,
+    /// Scene illumination, 1 = office light (the --light preset gives 1 or 0.05): scales the
+    /// photoreceptor's speed and the shot noise, and flattens the contrast against the dark
+    /// signal.
+    #[arg(long, value_name = "X")]
+    pub illumination: Option<f64>,
+}
+
+impl PixelArgs {
+    /// The preset's pixel model with the flags given.
+    pub fn apply(&self, mut px: PixelModel) -> Result<PixelModel> {
+        let positive = |v: Option<f64>, name: &str, zero_ok: bool| -> Result<Option<f64>> {
+            match v {
+                Some(x) if x.is_nan() || x < 0.0 || (!zero_ok && x == 0.0) => {
+                    bail!("--{name} must be a {} number", if zero_ok { "non-negative" } else { "positive" })
+                }
+                Some(x) if x.is_infinite() && name != "photoreceptor-hz" => bail!("--{name} must be finite"),
+                v => Ok(v),
+            }
+        };
+        if let Some(f) = positive(self.photoreceptor_hz, "photoreceptor-hz", false)? {
+            px.photoreceptor_hz = f.is_finite().then_some(f);
+        }
+        if let Some(v) = positive(self.threshold, "threshold", false)? {
+            px.threshold = v;
+        }
+        if let Some(v) = positive(self.mismatch, "mismatch", true)? {
+            px.mismatch = v;
+        }
+        if let Some(v) = positive(self.leak_hz, "leak-hz", true)? {
+            px.leak_hz = v;
+            px.leak_spread_decades = 0.33;
+        }
+        if let Some(v) = positive(self.shot_noise_hz, "shot-noise-hz", true)? {
+            px.shot_noise_hz = v;
+        }
+        if let Some(v) = positive(self.illumination, "illumination", false)? {
+            px.illumination = v;
+        }
+        Ok(px)
+    }
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
-    let cfg = SimConfig::preset(&a.sensor, &a.pattern, a.trajectory, a.light, a.seed)
+    let mut cfg = SimConfig::preset(&a.sensor, &a.pattern, a.trajectory, a.light, a.seed)
         .ok_or_else(|| anyhow::anyhow!("unknown sensor or pattern preset"))?;
+    cfg.pixel = a.pixel.apply(cfg.pixel)?;
     if !(a.step_ms.is_finite() && a.step_ms >= 0.0) {
         bail!("--step-ms must be a non-negative number of milliseconds");
     }
