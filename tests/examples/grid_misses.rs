@@ -24,16 +24,12 @@ use std::collections::BTreeMap;
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
     let cache = args::take_cache(&mut args);
+    let usage = "grid_misses [--cache DIR] SENSOR PATTERN cone|square|spiral good|low SECONDS SEED";
     if args.len() != 6 {
-        eprintln!("usage: grid_misses [--cache DIR] SENSOR PATTERN cone|square|spiral good|low SECONDS SEED");
+        eprintln!("usage: {usage}");
         std::process::exit(2);
     }
-    let (trajectory, light) = (args::trajectory(&args[2]), args::light(&args[3]));
-    let (Ok(seconds), Ok(seed)) = (args[4].parse::<f64>(), args[5].parse::<u64>()) else {
-        eprintln!("SECONDS and SEED must be numbers");
-        std::process::exit(2);
-    };
-    let (cfg, pattern) = args::preset_or_exit(&args[0], &args[1], trajectory, light, seed);
+    let (cfg, pattern, seconds) = args::scenario_or_exit(&args, usage);
     let cam = cfg.camera;
     let events = default_events_per_window(SensorSize { width: cam.width, height: cam.height });
     let file = cache.map(|d| d.join(format!("{}_{events}ev.json", args.join("_"))));

@@ -23,16 +23,13 @@ use evcal_tests::args;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    let usage = "window_sizes SENSOR PATTERN cone|square|spiral good|low SECONDS SEED EVENTS|default...";
     if args.len() < 7 {
-        eprintln!("usage: window_sizes SENSOR PATTERN cone|square|spiral good|low SECONDS SEED EVENTS|default...");
+        eprintln!("usage: {usage}");
         std::process::exit(2);
     }
-    let (trajectory, light) = (args::trajectory(&args[2]), args::light(&args[3]));
-    let (Ok(seconds), Ok(seed)) = (args[4].parse::<f64>(), args[5].parse::<u64>()) else {
-        eprintln!("SECONDS and SEED must be numbers");
-        std::process::exit(2);
-    };
-    let (cfg, pattern) = args::preset_or_exit(&args[0], &args[1], trajectory, light, seed);
+    let (cfg, pattern, seconds) = args::scenario_or_exit(&args, usage);
+    let seed = cfg.seed;
     let cam = cfg.camera;
     let sensor = SensorSize { width: cam.width, height: cam.height };
     for n in &args[6..] {

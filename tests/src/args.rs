@@ -52,6 +52,22 @@ pub fn preset_or_exit(
     (cfg, grid)
 }
 
+/// The scenario the examples take as `SENSOR PATTERN cone|square|spiral good|low SECONDS
+/// SEED` (the first six of `args`): its simulator configuration, grid and seconds, or the
+/// `usage` line and exit status 2.
+pub fn scenario_or_exit(args: &[String], usage: &str) -> (SimConfig, Pattern, f64) {
+    if args.len() < 6 {
+        eprintln!("usage: {usage}");
+        std::process::exit(2);
+    }
+    let (Ok(seconds), Ok(seed)) = (args[4].parse::<f64>(), args[5].parse::<u64>()) else {
+        eprintln!("SECONDS and SEED must be numbers");
+        std::process::exit(2);
+    };
+    let (cfg, pattern) = preset_or_exit(&args[0], &args[1], trajectory(&args[2]), light(&args[3]), seed);
+    (cfg, pattern, seconds)
+}
+
 #[cfg(test)]
 mod test {
     use super::*;
