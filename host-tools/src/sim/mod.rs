@@ -364,6 +364,20 @@ struct PixelState {
     leak: f64,
 }
 
+impl PixelState {
+    /// The level of the next event a pixel at `level` fires, and its sign (+1 ON, −1 OFF):
+    /// a threshold away from the reference; `None` within both thresholds.
+    fn crossing(&self, level: f64) -> Option<(f64, f64)> {
+        if level - self.reference >= self.on {
+            Some((self.reference + self.on, 1.0))
+        } else if self.reference - level >= self.off {
+            Some((self.reference - self.off, -1.0))
+        } else {
+            None
+        }
+    }
+}
+
 impl Simulator {
     /// A simulator at time 0.
     pub fn new(cfg: SimConfig) -> Self {
@@ -960,14 +974,7 @@ impl Simulator {
 /// the step, pushed to `events` as pixel `p`'s.
 fn ideal_update(st: &mut PixelState, l1: f64, t0: f64, t1: f64, refractory: f64, p: usize, events: &mut Crossings) {
     let l0 = st.level;
-    loop {
-        let (level, sign) = if l1 - st.reference >= st.on {
-            (st.reference + st.on, 1.0)
-        } else if st.reference - l1 >= st.off {
-            (st.reference - st.off, -1.0)
-        } else {
-            break;
-        };
+    while let Some((level, sign)) = st.crossing(l1) {
         let span = l1 - l0;
         let frac = if span.abs() > 1e-12 { ((level - l0) / span).clamp(0.0, 1.0) } else { 1.0 };
         let tc = (t0 + frac * (t1 - t0)).max(st.last + refractory);
@@ -1043,14 +1050,7 @@ fn physical_update(
     let y1 = if tau <= 0.0 { l1 } else { filtered(y0, l0, s, tau, dt) };
     let z1 = y1 + k * dt;
     let mut from = 0.0;
-    loop {
-        let (level, sign) = if z1 - st.reference >= st.on {
-            (st.reference + st.on, 1.0)
-        } else if st.reference - z1 >= st.off {
-            (st.reference - st.off, -1.0)
-        } else {
-            break;
-        };
+    while let Some((level, sign)) = st.crossing(z1) {
         let h = if tau <= 0.0 {
             // Linear: interpolated as the ideal pixel does.
             let (za, span) = (z(from), z1 - z(from));
