@@ -237,6 +237,38 @@ mod test {
     }
 
     #[test]
+    fn a_shift_solved_as_a_parameter_has_the_spread_it_claims_and_widens_the_intrinsics() {
+        // Noisy views trailing by 0.15 px: over seeds, the shift's estimates scatter as the
+        // σ the final solve gives it, and carrying it makes no intrinsic's σ smaller.
+        let mut estimates = Vec::new();
+        let mut claimed = Vec::new();
+        for seed in 0..12 {
+            let views = synthetic_views(&truth(), 40, 0.1, 100 + seed);
+            let origins: Vec<ViewOrigin> =
+                (0..40).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect();
+            let dirs = directions(&views, &origins);
+            let late = shifted(&views, &dirs, -0.15);
+            let est = estimate(&late, &dirs, [346, 260], &calib::Options::default()).expect("an estimate");
+            let fixed = shifted(&late, &dirs, est.px);
+            let plain = calib::calibrate(&fixed, [346, 260], &calib::Options::default()).unwrap();
+            let opts = calib::Options { shift_directions: dirs.clone(), ..calib::Options::default() };
+            let joint = calib::calibrate(&fixed, [346, 260], &opts).unwrap();
+            assert_eq!(plain.intrinsics, joint.intrinsics, "the σ changes, not the solution");
+            for i in 0..4 {
+                assert!(joint.std_dev[i] >= plain.std_dev[i] * (1.0 - 1e-9), "{i}: {joint:?} vs {plain:?}");
+            }
+            assert!(plain.shift_std_px.is_none());
+            estimates.push(est.px);
+            claimed.push(joint.shift_std_px.expect("a σ for the shift"));
+        }
+        let mean = estimates.iter().sum::<f64>() / 12.0;
+        let scatter = (estimates.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / 11.0).sqrt();
+        let sigma = claimed.iter().sum::<f64>() / 12.0;
+        assert!((mean - 0.15).abs() < 3.0 * sigma, "mean {mean}, σ {sigma}");
+        assert!(scatter < 2.0 * sigma && scatter > 0.4 * sigma, "scatter {scatter} against σ {sigma}");
+    }
+
+    #[test]
     fn no_shift_is_found_where_there_is_none_and_too_few_directions_give_none() {
         let (views, origins) = moving_views(40);
         let dirs = directions(&views, &origins);

@@ -362,6 +362,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     calib_opts.circle_radius = calib_opts.circle_radius.or(setup.circle_radius).or(views.circle_radius_m);
     let setup = &Setup { calib: calib_opts, ..setup.clone() };
     let mut edge_shift = None;
+    let mut shift_directions = Vec::new();
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
         let all = motion::directions(&all_views, &views.origins);
@@ -369,14 +370,21 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         edge_shift = motion::estimate(&used, &dirs, setup.image_size, &setup.calib);
         if let Some(s) = edge_shift {
             used = motion::shifted(&used, &dirs, s.px);
+            shift_directions = dirs;
         }
     }
     // Views of one stretch of the recording err alike; the σ printed must know it.
     let grouped = calib::Options {
         view_groups: used_origins.iter().map(|o| (o.t_s / GROUP_SECONDS).floor().max(0.0) as u32).collect(),
+        shift_directions,
         ..setup.calib.clone()
     };
     let calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
+    // The shift's σ as a parameter of the final solve, where its scatter over the groups of
+    // views counts too.
+    if let (Some(s), Some(sd)) = (edge_shift.as_mut(), calibration.shift_std_px) {
+        s.std_px = s.std_px.max(sd);
+    }
     let without_k3 =
         if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
             let opts = calib::Options { fix_k3: true, ..grouped.clone() };

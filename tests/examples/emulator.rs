@@ -232,6 +232,9 @@ fn main() {
                 1e3 * views.circle_radius_m.unwrap_or(f64::NAN),
                 1e3 * truth.pattern.radius_m
             );
+            if let Some(s) = out.edge_shift {
+                println!("    edge shift {:+.3} px (σ {:.3}, {} points)", s.px, s.std_px, s.points);
+            }
             diagnose_run(&truth, &k, &windows, &out, &setup);
         }
     }
@@ -304,6 +307,11 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     show("true outline centres at each view's best delay, solved as centres", &delayed, &centre_only);
     show("true outline centres at each view's best delay, outlines modelled", &delayed, &plain);
     show("detected, outlines modelled", &detected, &plain);
+    // How much of the error is the noise of weakly fixed parameters: the halves of the
+    // recording solved apart (on a spiral the two differ by far more than the whole errs).
+    let half = detected.len() / 2;
+    show("  first half of the views alone", &detected[..half], &plain);
+    show("  second half of the views alone", &detected[half..], &plain);
     delays.sort_by(f64::total_cmp);
     let q = |f: f64| 1e3 * delays[((delays.len() - 1) as f64 * f) as usize];
     println!("    best delay per view: median {:.2} ms (10 % {:.2}, 90 % {:.2})", q(0.5), q(0.1), q(0.9));

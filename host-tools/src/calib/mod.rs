@@ -78,6 +78,12 @@ pub struct Options {
     pub max_iterations: usize,
     /// A step that lowers the cost by less than this fraction ends the solve.
     pub tolerance: f64,
+    /// Per view (by index in the views given), per point: the direction along which its
+    /// detected centre was moved by a shift estimated from these same views (`dir` times
+    /// the shift; see [`crate::motion`]). The shift then counts as one more parameter in
+    /// the standard deviations, its uncertainty carried into the intrinsics'
+    /// ([`Calibration::shift_std_px`]). Empty, or not one entry per view: no shift.
+    pub shift_directions: Vec<Vec<[f64; 2]>>,
     /// Radius of the target's circles, metres: the solve then compares each detected centre
     /// with the centre of its circle's projected outline ([`outline_offset`]), which a circle
     /// fit measures, instead of the projection of the circle's centre. `None`: the latter, as
@@ -103,6 +109,7 @@ impl Default for Options {
             tolerance: 1e-12,
             circle_radius: None,
             view_groups: Vec::new(),
+            shift_directions: Vec::new(),
         }
     }
 }
@@ -174,6 +181,10 @@ pub struct Calibration {
     pub converged: bool,
     /// The circles' radius the solve modelled, metres ([`Options::circle_radius`]), if any.
     pub circle_radius_m: Option<f64>,
+    /// One standard deviation of the shift the points were moved by, px, as a parameter of
+    /// this solve ([`Options::shift_directions`]; the larger of the independent-error and
+    /// the grouped figure, like `std_dev`); `None` without one.
+    pub shift_std_px: Option<f64>,
 }
 
 impl Calibration {
@@ -525,22 +536,51 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
 
     // Standard deviations: the residual variance times the inverse of the reduced normal
     // matrix (the intrinsics' block of (JᵀWJ)⁻¹).
-    let n_free = sol.free.len();
-    let dof = (2 * count).saturating_sub(n_free + 6 * kept.len()).max(1) as f64;
+    let dof = (2 * count).saturating_sub(sol.free.len() + 6 * kept.len()).max(1) as f64;
     let sigma2 = sol.cost / dof;
     let mut std_dev_points = [0.0; 9];
     let mut std_dev = [0.0; 9];
-    if let Some(inv) = sol.reduced.clone().try_inverse() {
-        let data: Vec<solve::ViewData> = kept
-            .iter()
-            .zip(&weights)
-            .map(|(&v, w)| solve::ViewData { object: &views[v].object, image: &targets[v], weight: w })
-            .collect();
-        let grouped = grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &opts.view_groups);
-        for (c, &i) in sol.free.iter().enumerate() {
-            std_dev_points[i] = (sigma2 * inv[(c, c)]).max(0.0).sqrt();
+    let mut shift_std_px = None;
+    let data: Vec<solve::ViewData> = kept
+        .iter()
+        .zip(&weights)
+        .map(|(&v, w)| solve::ViewData { object: &views[v].object, image: &targets[v], weight: w })
+        .collect();
+    // A shift estimated from these views is one more parameter: the intrinsics' covariance
+    // is the block of the joint one, which carries the shift's own uncertainty into them.
+    let shift = (opts.shift_directions.len() == views.len())
+        .then(|| {
+            let dirs: Vec<&[[f64; 2]]> = kept.iter().map(|&v| &opts.shift_directions[v][..]).collect();
+            solve::shift_terms(&data, &k, &poses, &free, &dirs)
+        })
+        .flatten();
+    let n_free = sol.free.len();
+    let hessian = match &shift {
+        Some(t) => {
+            let mut h = nalgebra::DMatrix::<f64>::zeros(n_free + 1, n_free + 1);
+            h.view_mut((0, 0), (n_free, n_free)).copy_from(&sol.reduced);
+            for c in 0..n_free {
+                h[(c, n_free)] = t.cross[c];
+                h[(n_free, c)] = t.cross[c];
+            }
+            h[(n_free, n_free)] = t.curvature;
+            h
+        }
+        None => sol.reduced.clone(),
+    };
+    if let Some(inv) = hessian.try_inverse() {
+        let shift_scores = shift.as_ref().map(|t| &t.scores[..]);
+        let grouped = grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &opts.view_groups, shift_scores);
+        let sd = |c: usize| {
+            let points = (sigma2 * inv[(c, c)]).max(0.0).sqrt();
             let g = grouped.as_ref().map_or(0.0, |g| g[(c, c)].max(0.0).sqrt());
-            std_dev[i] = std_dev_points[i].max(g);
+            (points, points.max(g))
+        };
+        for (c, &i) in sol.free.iter().enumerate() {
+            (std_dev_points[i], std_dev[i]) = sd(c);
+        }
+        if shift.is_some() {
+            shift_std_px = Some(sd(n_free).1);
         }
         if let Some(a) = free.aspect {
             std_dev_points[1] = a * std_dev_points[0];
@@ -564,6 +604,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         iterations: sol.iterations,
         converged: sol.converged,
         circle_radius_m: opts.circle_radius,
+        shift_std_px,
     })
 }
 
@@ -571,10 +612,13 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
 /// groups says too little.
 const MIN_GROUPS: usize = 8;
 
-/// The free intrinsics' covariance from the scatter of the groups of views, `S⁻¹ B S⁻¹`
+/// The free parameters' covariance from the scatter of the groups of views, `S⁻¹ B S⁻¹`
 /// (`inv` = S⁻¹, the inverse reduced normal matrix; B the sum over groups of the outer
 /// product of each group's summed score, times G / (G − 1) for the one degree of freedom
-/// the solution takes). `None` without groups, or with fewer than [`MIN_GROUPS`].
+/// the solution takes). The parameters are the free intrinsics, then the shared shift when
+/// `shift_scores` (per kept view) are given. `None` without groups, or with fewer than
+/// [`MIN_GROUPS`].
+#[allow(clippy::too_many_arguments)]
 fn grouped_covariance(
     data: &[solve::ViewData],
     kept: &[usize],
@@ -583,16 +627,24 @@ fn grouped_covariance(
     free: &solve::Free,
     inv: &nalgebra::DMatrix<f64>,
     groups: &[u32],
+    shift_scores: Option<&[f64]>,
 ) -> Option<nalgebra::DMatrix<f64>> {
     if groups.is_empty() {
         return None;
     }
     let scores = solve::view_scores(data, k, poses, free)?;
     let n = inv.nrows();
+    let n_intrinsics = n - usize::from(shift_scores.is_some());
     let mut sums: std::collections::BTreeMap<u32, nalgebra::DVector<f64>> = std::collections::BTreeMap::new();
-    for (&v, s) in kept.iter().zip(&scores) {
+    for (j, (&v, s)) in kept.iter().zip(&scores).enumerate() {
         let g = *groups.get(v)?;
-        *sums.entry(g).or_insert_with(|| nalgebra::DVector::zeros(n)) += s.rows(0, n);
+        let sum = sums.entry(g).or_insert_with(|| nalgebra::DVector::zeros(n));
+        for c in 0..n_intrinsics {
+            sum[c] += s[c];
+        }
+        if let Some(t) = shift_scores {
+            sum[n_intrinsics] += *t.get(j)?;
+        }
     }
     let count = sums.len();
     if count < MIN_GROUPS {

@@ -256,6 +256,63 @@ pub(crate) fn solve(
     Some(Solution { intrinsics: k, poses, cost: nm.cost, reduced, free: idx, iterations, converged })
 }
 
+/// A shift of every detected point along a direction of its own, by one amount shared by
+/// all views, that was estimated from these same views (see `crate::motion`): its terms in
+/// the normal equations, each pose profiled out. With them the shift counts as one more
+/// parameter of the solve when its uncertainty is carried into the intrinsics'.
+pub(crate) struct ShiftTerms {
+    /// Per view: the shift's score, `Σ w r·∂r/∂δ − bᵀ V⁻¹ gv` (`b` its cross term with the
+    /// view's pose).
+    pub scores: Vec<f64>,
+    /// Its cross term with the free intrinsics (the leading `n` entries), `Σ (Σ w Jθᵀ ∂r/∂δ
+    /// − W V⁻¹ b)`.
+    pub cross: SVector<f64, 9>,
+    /// Its own curvature, `Σ (Σ w ‖∂r/∂δ‖² − bᵀ V⁻¹ b)`.
+    pub curvature: f64,
+}
+
+/// [`ShiftTerms`] of the views' points moved by `δ · dirs[view][point]` (a residual is
+/// model minus detected, so `∂r/∂δ = −dir`). `None` when a pose block is singular or a
+/// point cannot be projected.
+pub(crate) fn shift_terms(
+    views: &[ViewData],
+    k: &Intrinsics,
+    poses: &[Pose],
+    free: &Free,
+    dirs: &[&[[f64; 2]]],
+) -> Option<ShiftTerms> {
+    let (idx, n) = free.indices();
+    let idx = &idx[..n];
+    let mut out = ShiftTerms { scores: Vec::with_capacity(views.len()), cross: SVector::zeros(), curvature: 0.0 };
+    for ((view, pose), dir) in views.iter().zip(poses).zip(dirs) {
+        let (mut v, mut gv, mut b) = (M6::zeros(), V6::zeros(), V6::zeros());
+        let mut w = SMatrix::<f64, 9, 6>::zeros();
+        let (mut score, mut cross, mut curv) = (0.0, SVector::<f64, 9>::zeros(), 0.0);
+        for (((o, m), &wt), d) in view.object.iter().zip(view.image).zip(view.weight).zip(dir.iter()) {
+            let p = project(k, pose, o)?;
+            for (r, &mr) in m.iter().enumerate() {
+                let res = p.pixel[r] - mr;
+                let dr = -d[r];
+                let jt = free_row(&p.d_intrinsics[r], free, idx);
+                let jp = V6::from_row_slice(&p.d_pose[r]);
+                v += wt * jp * jp.transpose();
+                w += wt * jt * jp.transpose();
+                gv += wt * res * jp;
+                b += wt * dr * jp;
+                score += wt * res * dr;
+                cross += wt * dr * jt;
+                curv += wt * dr * dr;
+            }
+        }
+        let vi = v.try_inverse()?;
+        let vib = vi * b;
+        out.scores.push(score - vib.dot(&gv));
+        out.cross += cross - w * vib;
+        out.curvature += curv - b.dot(&vib);
+    }
+    Some(out)
+}
+
 /// Each view's score for the free intrinsics with its pose profiled out, `gθ − W V⁻¹ gv`
 /// (the first `n` entries, `n` the number of free intrinsics): at a solution the scores
 /// sum to zero, and how they scatter tells how the views' errors move the intrinsics
