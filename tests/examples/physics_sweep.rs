@@ -8,37 +8,10 @@
 //! case's detection windows for a rerun of the host's steps). `--cases` lists the cases
 //! without running them.
 //!
-//! Cases: photoreceptor cutoff at full light unlimited, 1000, 300 and 100 Hz; good and low
-//! light; cone and spiral; in focus, and out of focus (edge blur 2.5 px at the focus
-//! distance) for the good-light cone at 300 Hz. Thresholds, mismatch, leak and shot noise
-//! are those of `PixelModel::physical` for the light.
+//! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
+//! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
 
-use evcal_host::{
-    pipeline::{calibrate_views, views_from_windows, Setup},
-    sim::{Light, PixelModel, Trajectory},
-};
-use evcal_tests::{args, recorded::Recorded};
-
-/// One case of the sweep.
-struct Case {
-    trajectory: Trajectory,
-    light: Light,
-    photoreceptor_hz: f64,
-    blur_px: Option<f64>,
-}
-
-fn cases() -> Vec<Case> {
-    let mut out = Vec::new();
-    for light in [Light::Good, Light::Low] {
-        for trajectory in [Trajectory::Cone, Trajectory::Spiral] {
-            for hz in [f64::INFINITY, 1000.0, 300.0, 100.0] {
-                out.push(Case { trajectory, light, photoreceptor_hz: hz, blur_px: None });
-            }
-        }
-    }
-    out.push(Case { trajectory: Trajectory::Cone, light: Light::Good, photoreceptor_hz: 300.0, blur_px: Some(2.5) });
-    out
-}
+use evcal_tests::{args, sweep};
 
 fn main() {
     let mut argv: Vec<String> = std::env::args().skip(1).collect();
@@ -56,49 +29,40 @@ fn main() {
         argv.drain(i..i + 2);
     }
     let sensors = if argv.is_empty() { vec!["davis346".to_string()] } else { argv };
-    println!("| sensor | motion | light | photoreceptor | focus | fx error | fy error | cx error | cy error | error / σ (fx, fy, cx, cy) | RMS | views |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| sensor | motion | light | photoreceptor | focus | fx error | fy error | cx error | cy error | error / σ (fx, fy, cx, cy) | RMS | views | targets |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    let mut missed = 0;
     for sensor in &sensors {
-        for c in cases() {
-            let pattern_name = if c.trajectory == Trajectory::Spiral { "3x9" } else { "4x11" };
-            let (mut cfg, pattern) = args::preset_or_exit(sensor, pattern_name, c.trajectory, c.light, 5);
-            cfg.pixel = PixelModel::physical(c.light, c.photoreceptor_hz);
-            if let Some(b) = c.blur_px {
-                cfg.blur_px = b;
+        for c in sweep::cases() {
+            if c.config(sensor).is_none() {
+                eprintln!("unknown sensor {sensor}");
+                std::process::exit(2);
             }
-            let hz = if c.photoreceptor_hz.is_finite() {
-                format!("{:.0} Hz", c.photoreceptor_hz)
-            } else {
-                "unlimited".into()
-            };
-            let focus = if c.blur_px.is_some() { "out (2.5 px)" } else { "in" };
+            let (hz, focus) = (c.photoreceptor(), c.focus());
             let label =
-                format!("| {sensor} {pattern_name} | {} | {} | {hz} | {focus} |", c.trajectory.name(), c.light.name());
+                format!("| {sensor} {} | {} | {} | {hz} | {focus} |", c.pattern(), c.trajectory.name(), c.light.name());
             if list_only {
-                println!("{label} | | | | | | | |");
+                println!("{label} | | | | | | | | |");
                 continue;
             }
             let file = cache.as_ref().map(|d| {
                 d.join(format!(
-                    "sweep_{sensor}_{pattern_name}_{}_{}_{hz}_{focus}_{seconds}.json",
+                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}_{seconds}.json",
+                    c.pattern(),
                     c.trajectory.name(),
                     c.light.name()
                 ))
             });
-            let cam = cfg.camera;
-            let rec = Recorded::simulate(cfg, seconds, false, file.as_deref());
-            let setup = Setup::new(pattern, [u32::from(cam.width), u32::from(cam.height)]);
-            let views = views_from_windows(&rec.windows, &setup, &|_| {});
-            match calibrate_views(&views, &setup) {
+            match sweep::run(&c, sensor, seconds, file.as_deref()) {
                 Ok(o) => {
-                    let (k, sd) = (o.calibration.intrinsics, o.calibration.std_dev);
-                    let e =
-                        [100.0 * (k.fx / cam.fx - 1.0), 100.0 * (k.fy / cam.fy - 1.0), k.cx - cam.cx, k.cy - cam.cy];
-                    let s = [100.0 * sd[0] / k.fx, 100.0 * sd[1] / k.fy, sd[2], sd[3]];
+                    let (e, s) = (o.errors, o.sigmas);
                     let ratio: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / s[i])).collect();
-                    let failed = o.failure.as_ref().map_or(String::new(), |_| " (no calibration)".into());
+                    let failed = if o.failed { " (no calibration)" } else { "" };
+                    let misses = o.misses(&c.targets());
+                    missed += usize::from(!misses.is_empty());
+                    let verdict = if misses.is_empty() { "met".to_string() } else { misses.join("; ") };
                     println!(
-                        "{label} {:+.3} % (σ {:.3}){failed} | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {} |",
+                        "{label} {:+.3} % (σ {:.3}){failed} | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {} | {verdict} |",
                         e[0],
                         s[0],
                         e[1],
@@ -106,12 +70,18 @@ fn main() {
                         s[2],
                         e[3],
                         ratio.join(", "),
-                        o.calibration.rms_px,
-                        o.calibration.views.len()
+                        o.rms_px,
+                        o.views
                     );
                 }
-                Err(e) => println!("{label} failed: {e} | | | | | | |"),
+                Err(e) => {
+                    missed += 1;
+                    println!("{label} failed: {e} | | | | | | | |")
+                }
             }
         }
+    }
+    if !list_only {
+        println!("\n{missed} case(s) miss a target");
     }
 }

@@ -5,3 +5,4 @@ pub mod faery;
 pub mod firmware;
 pub mod link;
 pub mod recorded;
+pub mod sweep;
