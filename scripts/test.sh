@@ -30,6 +30,9 @@ cargo build "${fw[@]}" --features board-stm32f405
 cargo build "${fw[@]}" --features defmt
 cargo build "${fw[@]}"  # last: the image QEMU boots
 
+step "API documentation, warnings denied (broken links, bad code blocks)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+
 step "test data: faery's real recordings (fetched, not committed), Prophesee fixtures as make.py writes them"
 bash scripts/fetch-faery.sh >/dev/null
 python3 tests/fixtures/prophesee/make.py --check
