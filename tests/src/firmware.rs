@@ -111,6 +111,33 @@ impl BenchWindow {
         Self { cluster_ticks: 0, fit_ticks: 0, ..self.clone() }
     }
 
+    /// The window as the firmware's benchmark mode prints it (`firmware/src/bench.rs`'s
+    /// `write_window`), newline included; parsing it gives it back.
+    pub fn line(&self) -> String {
+        use std::fmt::Write as _;
+        let c = &self.counts;
+        let mut s = format!(
+            "W {} {} {} {} {} {} {} {} {} {} {}",
+            self.seq,
+            self.t_ref_us,
+            c[0],
+            c[1],
+            c[2],
+            c[3],
+            c[4],
+            c[5],
+            self.cluster_ticks,
+            self.fit_ticks,
+            self.centres.len()
+        );
+        for ([u, v, r, spread], n, converged) in &self.centres {
+            // Writing to a String cannot fail.
+            let _ = write!(s, " {u:08x} {v:08x} {r:08x} {spread:08x} {n} {}", u8::from(*converged));
+        }
+        s.push('\n');
+        s
+    }
+
     fn parse(line: &str) -> Result<Self> {
         let f: Vec<&str> = line.split_ascii_whitespace().collect();
         ensure!(f.len() >= 12 && f[0] == "W", "not a window line: {line}");

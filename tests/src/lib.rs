@@ -3,5 +3,6 @@
 pub mod args;
 pub mod faery;
 pub mod firmware;
+pub mod golden;
 pub mod link;
 pub mod recorded;
