@@ -22,6 +22,32 @@ pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The cargo profile the firmware is built with (`cargo fw`).
 pub const PROFILE: &str = "firmware";
 
+/// Most instructions one window (4000 events) may take on the emulated board (QEMU
+/// `mps2-an386`, a Cortex-M4F), between the benchmark markers: 33 ms, a window's share of
+/// real time at 30 windows a second, at 168 MHz (the STM32F405's clock) and 1.25 cycles per
+/// instruction is 4.435 M; the README's target rounds it down.
+pub const M4F_INSTRUCTIONS_PER_WINDOW: u64 = 4_400_000;
+
+/// The instruction-counting QEMU plugin (`firmware/tools/insn_count.c`), built with `gcc`
+/// into the target directory when missing or older than its source; returns its path.
+pub fn build_counter_plugin() -> Result<PathBuf> {
+    let source = workspace_root().join("firmware/tools/insn_count.c");
+    let dir = target_dir().join("bench-firmware");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let plugin = dir.join("libinsn_count.so");
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    if modified(&plugin).is_none() || modified(&plugin) < modified(&source) {
+        let status = Command::new("gcc")
+            .args(["-shared", "-fPIC", "-O2", "-Wall", "-o"])
+            .arg(&plugin)
+            .arg(&source)
+            .status()
+            .context("running gcc to build the instruction-counting plugin (scripts/setup.sh installs gcc)")?;
+        ensure!(status.success(), "building {} failed ({status})", plugin.display());
+    }
+    Ok(plugin)
+}
+
 /// The workspace's root directory.
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
