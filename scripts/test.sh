@@ -27,8 +27,16 @@ cargo clippy "${fw[@]}" -- -D warnings
 cargo clippy "${fw[@]}" --features board-stm32f405 -- -D warnings
 cargo clippy "${fw[@]}" --features defmt -- -D warnings
 cargo build "${fw[@]}" --features board-stm32f405
+# Each board's image within the flash and static-RAM budget, checked as it is built (the
+# next build overwrites it).
+elf="${CARGO_TARGET_DIR:-target}/thumbv7em-none-eabihf/firmware/evcal-firmware"
+bash scripts/firmware-size.sh "$elf" stm32f405
 cargo build "${fw[@]}" --features defmt
 cargo build "${fw[@]}"  # last: the image QEMU boots
+bash scripts/firmware-size.sh "$elf" mps2-an386
+
+step "API documentation, warnings denied (broken links, bad code blocks)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 
 step "test data: faery's real recordings (fetched, not committed), Prophesee fixtures as make.py writes them"
 bash scripts/fetch-faery.sh >/dev/null
@@ -49,9 +57,10 @@ cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-12}"
 
 # The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
-# replay is 35 s of it); the test binary is the workspace tests' build, the image the one
-# built above. See tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which
-# needs no QEMU.
+# replay is 35 s of it), and the instruction budget over the benchmark's scenario about 25 s
+# more on 2 loaded cores (its simulation mostly); the test binary is the workspace tests'
+# build, the image the one built above. See tests/tests/firmware_qemu.rs. Ignored by a plain
+# `cargo test`, which needs no QEMU.
 step "firmware under QEMU (emulated Cortex-M4F board)"
 cargo test -p evcal-tests --test firmware_qemu -- --ignored 2>&1 | tee -a target/test-output.txt
 

@@ -5,7 +5,7 @@
 //! itself: two crescents, one ahead and one behind, with gaps where the edge slides along its
 //! own tangent. DBSCAN often keeps the crescents apart, and each alone is a poor arc to fit.
 //! [`Moments`] summarises a cluster by the power sums `Σ xᵃ yᵇ τᶜ` of its events (τ the time
-//! from the window's reference, a + b ≤ 4 − 2c… see [`POWERS`]); the sums of two clusters,
+//! from the window's reference, a + b ≤ 4 − 2c… see `POWERS` in the source); the sums of two clusters,
 //! moved to a common origin, add up to those of their union, and Kåsa's algebraic fit of a
 //! moving circle, `x² + y² + Dx + Ey + Gτx + Hτy + F + Iτ = 0`, and its residual follow from
 //! them without touching the events again. So every pair of nearby clusters can be tried as

@@ -268,6 +268,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     // Every column and row is below `SORT_BUCKETS` (checked above), a power of two: the masks
     // keep them as they are and spare the bounds checks.
     for (i, e) in events.iter().enumerate() {
+        debug_assert!(usize::from(e.x) < SORT_BUCKETS, "column {} beyond the sort's buckets", e.x);
         let b = &mut next[usize::from(e.x) & (SORT_BUCKETS - 1)];
         order[usize::from(*b)] = i as u16;
         *b = b.wrapping_add(1);
@@ -279,6 +280,7 @@ fn sort_in_time_by_pixel(events: &mut [WindowEvent], order: &mut [u16], pos: &mu
     }
     for &i in order.iter() {
         let i = usize::from(i);
+        debug_assert!(usize::from(events[i].y) < SORT_BUCKETS, "row {} beyond the sort's buckets", events[i].y);
         let b = &mut next[usize::from(events[i].y) & (SORT_BUCKETS - 1)];
         pos[i] = *b;
         *b = b.wrapping_add(1);
@@ -386,6 +388,7 @@ impl Rows {
         self.recent.copy_within(keep_from..self.len, 0);
         self.len -= keep_from;
         let row = Row { y, start: start as u16, end: end as u16 };
+        debug_assert!(self.len < self.recent.len(), "{} rows within reach {} of row {y}", self.len, self.reach);
         if self.len == self.recent.len() {
             // Unreachable (rows are distinct and at most `reach` apart), kept panic-free.
             self.recent.copy_within(1.., 0);
@@ -470,6 +473,7 @@ impl<'c> Tables<'c> {
     /// spares the bounds check (`TABLE_CELLS` is a power of two).
     #[inline(always)]
     fn at(&self, i: usize) -> usize {
+        debug_assert!(i < self.slots * self.stride, "lookup {i} outside the tables");
         usize::from(self.cells[i % TABLE_CELLS])
     }
 
@@ -492,6 +496,7 @@ impl<'c> Tables<'c> {
             // `slots · stride` cells fit (see `new`): the row's table is all there (were it
             // not, the sweep would stop building, and stay panic-free). The row's end is found
             // on the way.
+            debug_assert!(base + self.stride <= TABLE_CELLS, "row {y}'s table beyond the cells");
             let Some(table) = self.cells.get_mut(base..base + self.stride) else {
                 self.next = events.len();
                 break;
@@ -526,6 +531,7 @@ impl<'c> Tables<'c> {
     /// within the reach), whose spans are `s` columns either side.
     fn offset(&self, d: i32, s: u16) -> Offset {
         // `slots` exceeds twice the reach: `slots + d` is positive.
+        debug_assert!(2 * (d.unsigned_abs() as usize) < self.slots, "row distance {d} beyond the reach");
         Offset { d, shift: self.slots.wrapping_add_signed(d as isize), s: usize::from(s), above: usize::from(d < 0) }
     }
 
@@ -536,6 +542,7 @@ impl<'c> Tables<'c> {
         let own = usize::from(y) % self.slots;
         for o in order {
             // `own + shift` is below three times `slots`.
+            debug_assert!(own + o.shift < 3 * self.slots, "slot {own} shifted by {} beyond the table", o.shift);
             let (Some(&entry), Some(near)) = (self.lut.get(own + o.shift), out.get_mut(len)) else {
                 break;
             };
@@ -794,6 +801,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
         let s0 = span[0];
         // Runs of core points for linking (see `link_row`) are cut at gaps wider than this.
         let gap = s0.min(span[reach].saturating_mul(2).saturating_add(1));
+        // `gap` holds for every row within reach, and `pad` (the widest span) keeps every
+        // lookup inside the tables, only if spans narrow with the row distance.
+        debug_assert!(span[..=reach].windows(2).all(|w| w[0] >= w[1]), "spans widen with the row distance: {span:?}");
 
         let (mut counted, mut linked) = (0, 0);
         let (mut queries, mut core_points) = (0u32, 0u16);
@@ -879,6 +889,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             if step <= s0 {
                 // `union(prev, k)`: no link has reached `k` yet (only rows above and points
                 // before it in its row have been linked), so it is its own root.
+                debug_assert_eq!(usize::from(self.labels[k] & MASK), k, "core point {k} linked before its row");
                 let parent = self.labels.get(prev).map_or(0, |&l| l & MASK);
                 self.labels[k] = CORE | parent;
             }
@@ -1131,6 +1142,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             }
             let p = usize::from(l & MASK);
             // A parent is below its child, a root its own parent.
+            debug_assert!(p <= i, "core point {i}'s parent {p} is above it");
             let label = if p < i {
                 labels[p] & MASK
             } else {
@@ -1226,6 +1238,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
                         *p = p.wrapping_add(1);
                         // Each move puts one event in its final region, so this ends; `d` is
                         // below `n` (every region's pointer stays within it).
+                        debug_assert!(d < n, "region {g}'s fill pointer {d} beyond the {n} events");
                         let (Some(slot), Some(slot_label)) = (events.get_mut(d), labels.get_mut(d)) else { break };
                         carried = core::mem::replace(slot, carried);
                         carried_label = core::mem::replace(slot_label, carried_label);

@@ -428,6 +428,7 @@ impl Histogram {
         // The last bin collects everything beyond the histogram (a NaN casts to bin 0).
         let k = ((abs_residual * (1.0 / HIST_BIN)) as usize).min(HIST_BINS - 1);
         // A fit takes at most `u16::MAX` events (see `fit_from`): no bin overflows.
+        debug_assert!(self.bins[k] < u16::MAX, "more residuals in one pass than a fit takes events");
         self.bins[k] = self.bins[k].wrapping_add(1);
     }
 

@@ -2,8 +2,8 @@
 //!
 //! The firmware image (`src/main.rs`, built with `cargo fw` for `thumbv7em-none-eabihf`)
 //! brings a board up and runs the detection core of `evcal-core` window by window on events
-//! from an [`EventSource`]. What is here compiles on any target, so the host tests it and the
-//! host tools use the same code to write what the firmware reads:
+//! from an [`EventSource`](source::EventSource). What is here compiles on any target, so the
+//! host tests it and the host tools use the same code to write what the firmware reads:
 //!
 //! * [`source`]: the event-source trait every input implements (the emulator's bulk file, a
 //!   sensor's EVT byte stream; UART replay arrives through the wire protocol's device loop),

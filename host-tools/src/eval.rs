@@ -107,7 +107,8 @@ pub fn simulate(
 
 /// Simulates only what the windows of `window` need: from each tick (every `step_us`) to the
 /// end of the step in which `events` events have come (and 64 more: the timestamp jitter's
-/// reach), then jumps to the next tick ([`Simulator::skip_to`]). With windows of a few
+/// reach), then jumps to the next tick
+/// ([`Simulator::skip_to`](crate::sim::Simulator::skip_to)). With windows of a few
 /// milliseconds every 33 ms this simulates about a seventh of the time [`simulate`] does, and
 /// the windows the detector cuts are equally distributed: their centres trail their circles
 /// as far, and the calibration agrees (`tests/tests/calibration.rs`). `progress` is called

@@ -986,21 +986,31 @@ mod test {
         assert_eq!(p.picture().lines().next().unwrap(), "o   o   o   o   o   o");
     }
 
-    proptest! {
-        #![proptest_config(ProptestConfig::with_cases(200))]
-
-        /// Whatever the pose, clutter and losses: a grid found is labelled right.
-        #[test]
-        fn never_a_wrong_ordering(
-            roll in 0.0f64..360.0,
-            tilt_x in -0.7f64..0.7,
-            tilt_y in -0.7f64..0.7,
-            distance in 0.45f64..1.2,
-            k1 in -0.35f64..0.1,
-            lost in proptest::collection::vec(0usize..44, 0..10),
-            clutter in proptest::collection::vec((0.0f64..346.0, 0.0f64..260.0, 0.5f64..1.6), 0..40),
-            seed in 0u64..1000,
-        ) {
+    /// Whatever the pose, clutter and losses: a grid found is labelled right. Random cases
+    /// (proptest's runner, so a failure shrinks and is kept in proptest-regressions/), and a
+    /// floor on the grids found: a finder that never succeeded would pass the labelling check
+    /// vacuously.
+    #[test]
+    fn never_a_wrong_ordering() {
+        const CASES: u32 = 200;
+        // Measured: found in 187 to 193 of the 200 cases over six runs (94 %, a standard
+        // deviation of 3.4 cases); 160 is eight deviations below, so chance never fails it, but a
+        // finder losing a sixth of these grids does.
+        const FLOOR: u32 = 160;
+        let config = ProptestConfig { source_file: Some(file!()), ..ProptestConfig::with_cases(CASES) };
+        let mut runner = proptest::test_runner::TestRunner::new(config);
+        let cases = (
+            0.0f64..360.0,
+            -0.7f64..0.7,
+            -0.7f64..0.7,
+            0.45f64..1.2,
+            -0.35f64..0.1,
+            proptest::collection::vec(0usize..44, 0..10),
+            proptest::collection::vec((0.0f64..346.0, 0.0f64..260.0, 0.5f64..1.6), 0..40),
+            0u64..1000,
+        );
+        let found = std::cell::Cell::new(0u32);
+        let result = runner.run(&cases, |(roll, tilt_x, tilt_y, distance, k1, lost, clutter, seed)| {
             let pattern = Pattern::new(4, 11, 0.024).unwrap();
             let shot = Shot { roll: roll.to_radians(), tilt_x, tilt_y, distance, k1 };
             let all = shoot(&pattern, &shot, 0.3, seed);
@@ -1010,8 +1020,16 @@ mod test {
             c.extend(clutter.iter().map(|&(u, v, f)| (centre([u, v], r * f), None)));
             let c = in_view(&c);
             if let Ok(g) = find(&c, &pattern) {
+                found.set(found.get() + 1);
                 check(&g, &all);
             }
+            Ok(())
+        });
+        if let Err(e) = result {
+            panic!("{e}\n{runner}");
         }
+        let found = found.get();
+        println!("grid found in {found} of {CASES} cases");
+        assert!(found >= FLOOR, "grid found in only {found} of {CASES} cases, fewer than {FLOOR}");
     }
 }

@@ -22,6 +22,32 @@ pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The cargo profile the firmware is built with (`cargo fw`).
 pub const PROFILE: &str = "firmware";
 
+/// Most instructions one window (4000 events) may take on the emulated board (QEMU
+/// `mps2-an386`, a Cortex-M4F), between the benchmark markers: 33 ms, a window's share of
+/// real time at 30 windows a second, at 168 MHz (the STM32F405's clock) and 1.25 cycles per
+/// instruction is 4.435 M; the README's target rounds it down.
+pub const M4F_INSTRUCTIONS_PER_WINDOW: u64 = 4_400_000;
+
+/// The instruction-counting QEMU plugin (`firmware/tools/insn_count.c`), built with `gcc`
+/// into the target directory when missing or older than its source; returns its path.
+pub fn build_counter_plugin() -> Result<PathBuf> {
+    let source = workspace_root().join("firmware/tools/insn_count.c");
+    let dir = target_dir().join("bench-firmware");
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let plugin = dir.join("libinsn_count.so");
+    let modified = |p: &Path| std::fs::metadata(p).and_then(|m| m.modified()).ok();
+    if modified(&plugin).is_none() || modified(&plugin) < modified(&source) {
+        let status = Command::new("gcc")
+            .args(["-shared", "-fPIC", "-O2", "-Wall", "-o"])
+            .arg(&plugin)
+            .arg(&source)
+            .status()
+            .context("running gcc to build the instruction-counting plugin (scripts/setup.sh installs gcc)")?;
+        ensure!(status.success(), "building {} failed ({status})", plugin.display());
+    }
+    Ok(plugin)
+}
+
 /// The workspace's root directory.
 pub fn workspace_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).parent().map(Path::to_path_buf).unwrap_or_default()
@@ -109,6 +135,33 @@ impl BenchWindow {
     /// Everything but the stage times (which only the device has).
     pub fn without_times(&self) -> Self {
         Self { cluster_ticks: 0, fit_ticks: 0, ..self.clone() }
+    }
+
+    /// The window as the firmware's benchmark mode prints it (`firmware/src/bench.rs`'s
+    /// `write_window`), newline included; parsing it gives it back.
+    pub fn line(&self) -> String {
+        use std::fmt::Write as _;
+        let c = &self.counts;
+        let mut s = format!(
+            "W {} {} {} {} {} {} {} {} {} {} {}",
+            self.seq,
+            self.t_ref_us,
+            c[0],
+            c[1],
+            c[2],
+            c[3],
+            c[4],
+            c[5],
+            self.cluster_ticks,
+            self.fit_ticks,
+            self.centres.len()
+        );
+        for ([u, v, r, spread], n, converged) in &self.centres {
+            // Writing to a String cannot fail.
+            let _ = write!(s, " {u:08x} {v:08x} {r:08x} {spread:08x} {n} {}", u8::from(*converged));
+        }
+        s.push('\n');
+        s
     }
 
     fn parse(line: &str) -> Result<Self> {

@@ -3,6 +3,7 @@
 pub mod args;
 pub mod faery;
 pub mod firmware;
+pub mod golden;
 pub mod link;
 pub mod recorded;
 pub mod sweep;

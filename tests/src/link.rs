@@ -13,7 +13,7 @@ use evcal_core::{
         Hello, HelloReply, Stats,
     },
 };
-use evcal_host::detections::HostDetector;
+use evcal_host::detections::{HostDetector, WindowRecord};
 use std::{
     collections::BTreeSet,
     io::{ErrorKind, Read, Write},
@@ -117,6 +117,9 @@ impl Damage {
 pub struct Replay {
     /// The detection frames received intact, whole (delimiters included), by window number.
     pub detections: Vec<(u32, Vec<u8>)>,
+    /// The same detections as `evcal replay` writes them: one JSON line each, newline
+    /// included.
+    pub jsonl: String,
     /// Hellos received.
     pub hellos: Vec<Hello>,
     /// The device's final statistics (sent after the host's End).
@@ -296,6 +299,8 @@ pub fn replay(qemu: &mut Qemu, cfg: DetectConfig, events: &[Event], tamper: Tamp
             match DeviceMessage::parse(&payload) {
                 Ok(DeviceMessage::Detection(d)) => {
                     out.detection_bytes += whole.len() as u64;
+                    out.jsonl.push_str(&WindowRecord::from_frame(&d).to_json_line());
+                    out.jsonl.push('\n');
                     out.detections.push((d.header.seq, whole));
                 }
                 Ok(DeviceMessage::Ack(Ack { next: n, window, nak })) => {

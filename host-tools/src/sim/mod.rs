@@ -643,7 +643,7 @@ impl Simulator {
     /// Jumps to `seconds` since the start without simulating the time between: every pixel
     /// takes the scene's log intensity there and the reference level its history would have
     /// left it at, a random point of its threshold cycle where that history is unknown
-    /// ([`settle`](Self::settle)). The events of a window depend on the pixels' states only
+    /// (`settle`). The events of a window depend on the pixels' states only
     /// through those, so the windows that follow are those of a continuous run, at a
     /// fraction of the cost when windows are far apart (`evcal demo` simulates only the few
     /// milliseconds after each window tick). Events produced before the jump are kept.
