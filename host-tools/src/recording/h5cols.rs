@@ -95,6 +95,9 @@ pub struct H5ColumnsReader {
     t: hdf5::Dataset,
     p: hdf5::Dataset,
     p_bool: bool,
+    /// `t` is u64: read as such, since HDF5's conversion to i64 saturates values above
+    /// i64::MAX to one value (every such event at the same time, silently).
+    t_u64: bool,
     time: TimeColumn,
     offset_us: i64,
     rows: usize,
@@ -112,6 +115,7 @@ struct Chunk {
     y: Vec<i64>,
     p: Vec<i64>,
     t: Vec<i64>,
+    tu: Vec<u64>,
     tf: Vec<f64>,
 }
 
@@ -159,7 +163,9 @@ impl H5ColumnsReader {
         let group = if prefix.is_empty() { None } else { file.group("events").ok() };
         let mut notes = Vec::new();
         let mut offset_us = 0i64;
-        let time = match kind(&t, "t")? {
+        let t_kind = kind(&t, "t")?;
+        let t_u64 = matches!(t_kind, TypeDescriptor::Unsigned(hdf5::types::IntSize::U8));
+        let time = match t_kind {
             TypeDescriptor::Float(_) => {
                 if unit.is_some_and(|u| u != TimeUnit::Seconds) {
                     return Err(err(format!("'{prefix}t' holds floats: evcal reads them as seconds only")));
@@ -205,6 +211,7 @@ impl H5ColumnsReader {
             t,
             p,
             p_bool,
+            t_u64,
             time,
             offset_us,
             rows,
@@ -256,6 +263,9 @@ impl H5ColumnsReader {
             ints(&self.p, "p")?
         };
         match self.time {
+            TimeColumn::Int(_) if self.t_u64 => {
+                self.buf.tu = self.t.read_slice_1d::<u64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
+            }
             TimeColumn::Int(_) => self.buf.t = ints(&self.t, "t")?,
             TimeColumn::FloatSeconds => {
                 self.buf.tf = self.t.read_slice_1d::<f64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
@@ -278,7 +288,14 @@ impl H5ColumnsReader {
         };
         let t_us = match self.time {
             TimeColumn::Int(u) => {
-                let v = self.buf.t[i];
+                let v = if self.t_u64 {
+                    let v = self.buf.tu[i];
+                    i64::try_from(v).map_err(|_| {
+                        format!("timestamp {v} {} is above the largest evcal reads ({})", u.name(), i64::MAX)
+                    })?
+                } else {
+                    self.buf.t[i]
+                };
                 u.to_us(v)
                     .and_then(|t| t.checked_add(self.offset_us))
                     .ok_or(format!("timestamp {v} {} overflows", u.name()))?
