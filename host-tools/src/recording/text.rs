@@ -209,7 +209,8 @@ impl TextReader {
         let q = || quote(line.as_bytes(), QUOTE);
         let mut it = line.split_whitespace();
         let (Some(t), Some(x), Some(y), Some(p)) = (it.next(), it.next(), it.next(), it.next()) else {
-            return Err(self.error(line_no, format!("expected 4 fields 't x y p', found \"{}\"", q())));
+            let hint = if line.starts_with('{') { " (detections? they are read from a .jsonl file)" } else { "" };
+            return Err(self.error(line_no, format!("expected 4 fields 't x y p', found \"{}\"{hint}", q())));
         };
         if it.next().is_some() {
             return Err(self.error(line_no, format!("expected 4 fields 't x y p', found more: \"{}\"", q())));

@@ -146,6 +146,10 @@ fn is_detections(path: &Path) -> Result<bool> {
     if ext == "json" {
         return Ok(true);
     }
+    // A stream sniffed here would lose those bytes for the recording's reader.
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Ok(false);
+    }
     // Otherwise sniff: a detections file starts with '{'.
     use std::io::Read;
     let mut head = [0u8; 64];

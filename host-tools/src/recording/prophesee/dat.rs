@@ -66,12 +66,9 @@ impl DatReader {
         let at = |o: u64, m: String| ReadError::new(&path, Position::Byte(o), m);
         // Prophesee's tools always write a header: without one, nothing tells a .dat from any
         // other bytes (random data reads as plausible events), so it is refused.
-        if header.fields.is_empty() {
-            let what = if head.is_empty() {
-                "the file is empty".to_string()
-            } else {
-                format!("it starts \"{}\"", crate::recording::input::quote(head, 16))
-            };
+        // An empty file holds nothing to misread: no events.
+        if header.fields.is_empty() && !head.is_empty() {
+            let what = format!("it starts \"{}\"", crate::recording::input::quote(head, 16));
             return Err(at(
                 0,
                 format!(
@@ -81,6 +78,7 @@ impl DatReader {
             ));
         }
         let (ev_type, ev_size, data_at) = match head.get(header.len as usize..header.len as usize + 2) {
+            _ if head.is_empty() => (12, RECORD as u8, 0),
             Some(&[t, s]) => (t, s, header.len + 2),
             _ => {
                 return Err(at(
