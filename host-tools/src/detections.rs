@@ -161,7 +161,7 @@ impl std::fmt::Display for ReadDetectionsError {
             ),
             ReadDetectionsError::Order { line, message } => write!(
                 f,
-                "line {line}: {message}; evcal writes windows in order, each later than the one before (files joined or edited? sort them by seq, drop repeats)"
+                "line {line}: {message}; evcal writes windows in order (files joined or edited? sort them by seq, drop repeats)"
             ),
         }
     }
@@ -174,13 +174,55 @@ pub const MAX_DETECTIONS_LINE: usize = 1 << 20;
 
 /// Reads a detections file (JSON lines, as `evcal detect`, `replay` and `collect` write it).
 /// Blank lines are skipped; any other line that is not a window record is an error naming
-/// the line, so nothing is dropped silently. Windows must come in order, each with a larger
-/// `seq` and a later `t_ref_us` than the one before: a file in reverse, with repeated windows
-/// or with one time for all (which calibrate worse, silently) is refused, not sorted, so that
-/// whatever made it can be fixed. Lines are at most [`MAX_DETECTIONS_LINE`] bytes.
-pub fn read_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+/// the line, so nothing is dropped silently. Lines are at most [`MAX_DETECTIONS_LINE`]
+/// bytes. [`read_jsonl_in_order`] also checks the windows' order, as a calibration needs.
+pub fn read_jsonl(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+    Ok(parse_jsonl(input)?.into_iter().map(|(_, w)| w).collect())
+}
+
+/// [`read_jsonl`], and the windows must come in order, each with a larger `seq` and a
+/// `t_ref_us` no earlier than the one before, not all at one time: a file in reverse, with
+/// repeated windows or with one time for all (which calibrate worse, silently) is refused,
+/// not sorted, so that whatever made it can be fixed.
+pub fn read_jsonl_in_order(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+    let windows = parse_jsonl(input)?;
+    for pair in windows.windows(2) {
+        let ((_, prev), (line, r)) = (&pair[0], &pair[1]);
+        let order = |message: String| ReadDetectionsError::Order { line: *line, message };
+        if r.seq == prev.seq {
+            return Err(order(format!("window {} again (a repeated window)", r.seq)));
+        }
+        if r.seq < prev.seq {
+            return Err(order(format!("window {} after window {} (out of order)", r.seq, prev.seq)));
+        }
+        if r.t_ref_us < prev.t_ref_us {
+            return Err(order(format!(
+                "window {} at {} µs, before window {} at {} µs (times out of order)",
+                r.seq, r.t_ref_us, prev.seq, prev.t_ref_us
+            )));
+        }
+    }
+    // Two windows may share a time (events of one timestamp, `--step-ms 0`); all of them
+    // cannot: the times were lost.
+    if let (Some((_, first)), Some((line, last))) = (windows.first(), windows.last()) {
+        if windows.len() > 1 && first.t_ref_us == last.t_ref_us {
+            return Err(ReadDetectionsError::Order {
+                line: *line,
+                message: format!(
+                    "all {} windows at the same time ({} µs: times all alike)",
+                    windows.len(),
+                    first.t_ref_us
+                ),
+            });
+        }
+    }
+    Ok(windows.into_iter().map(|(_, w)| w).collect())
+}
+
+/// The window records of a detections file, each with its line number.
+fn parse_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<(usize, WindowRecord)>, ReadDetectionsError> {
     use std::io::{BufRead, Read};
-    let mut out: Vec<WindowRecord> = Vec::new();
+    let mut out = Vec::new();
     let mut line = Vec::new();
     let mut i = 0usize;
     loop {
@@ -220,22 +262,7 @@ pub fn read_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<WindowRecord>,
             line: i,
             message: format!("{e}; it starts \"{}\"", crate::recording::quote(text.trim().as_bytes(), 40)),
         })?;
-        if let Some(prev) = out.last() {
-            let order = |message: String| ReadDetectionsError::Order { line: i, message };
-            if r.seq == prev.seq {
-                return Err(order(format!("window {} again (a repeated window)", r.seq)));
-            }
-            if r.seq < prev.seq {
-                return Err(order(format!("window {} after window {} (out of order)", r.seq, prev.seq)));
-            }
-            if r.t_ref_us <= prev.t_ref_us {
-                return Err(order(format!(
-                    "window {} at {} µs, not after window {} at {} µs (times out of order or all alike)",
-                    r.seq, r.t_ref_us, prev.seq, prev.t_ref_us
-                )));
-            }
-        }
-        out.push(r);
+        out.push((i, r));
     }
     Ok(out)
 }

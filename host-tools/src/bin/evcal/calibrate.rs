@@ -208,7 +208,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         // still a mistake to say rather than ignore.
         a.core.config(sensor)?;
         let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
-        let w = detections::read_jsonl(std::io::BufReader::new(f)).with_context(|| a.input.display().to_string())?;
+        let w = detections::read_jsonl_in_order(std::io::BufReader::new(f))
+            .with_context(|| a.input.display().to_string())?;
         (w, sensor)
     } else {
         detect(&a)?
