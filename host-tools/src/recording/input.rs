@@ -73,12 +73,9 @@ impl Input {
     /// Reads until `head` holds at least `n` bytes or the input ends.
     pub fn peek(&mut self, n: usize) -> Result<&[u8], ReadError> {
         if self.head.len() < n {
-            let want = n - self.head.len();
-            let start = self.head.len();
-            self.head.resize(n, 0);
-            let got = read_up_to(&mut self.rest, &mut self.head[start..start + want])
-                .map_err(|e| ReadError::io(&self.name, e))?;
-            self.head.truncate(start + got);
+            // Grown as bytes come: a short input costs its size, not `n`.
+            let want = (n - self.head.len()) as u64;
+            (&mut self.rest).take(want).read_to_end(&mut self.head).map_err(|e| ReadError::io(&self.name, e))?;
         }
         Ok(&self.head)
     }

@@ -117,7 +117,7 @@ fn sniff(input: &mut Input, path: &Path) -> Result<Sniffed, ReadError> {
     }
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
     if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
-        input.peek(prophesee::MAX_HEADER)?;
+        prophesee::peek_header(input)?;
         if let Some(f) = prophesee::sniff(&input.name, &input.head, ext.as_deref())? {
             return Ok(Sniffed::Ready(f));
         }

@@ -165,6 +165,21 @@ pub fn sniff_evt21_order(body: &[u8]) -> Option<Evt21Order> {
     }
 }
 
+/// Peeks at `input` until its `%` header has ended (with some bytes of data after it, for
+/// [`sniff_evt21_order`]), the input has ended, or [`MAX_HEADER`] bytes: a live stream is not
+/// held up for a megabyte, a short file costs its size.
+pub(crate) fn peek_header(input: &mut crate::recording::input::Input) -> Result<(), ReadError> {
+    let mut want = 1 << 16;
+    loop {
+        let got = input.peek(want)?.len();
+        let header = Header::parse(&input.head).len as usize;
+        if got < want || header + (1 << 16) <= got || want >= MAX_HEADER {
+            return Ok(());
+        }
+        want = (want * 4).min(MAX_HEADER);
+    }
+}
+
 /// Recognises a Prophesee file by its header (`head`: its first bytes, up to
 /// [`MAX_HEADER`]), else by its extension: `Ok(None)` if it is not one.
 pub(super) fn sniff(path: &Path, head: &[u8], ext: Option<&str>) -> Result<Option<Format>, ReadError> {

@@ -1,7 +1,7 @@
 //! Prophesee RAW files: the `%` header, then the sensor's EVT byte stream, decoded in chunks
 //! by `evcal_core::evt` (constant memory whatever the file's size).
 
-use super::{Header, Position, ReadError, MAX_HEADER};
+use super::{Header, Position, ReadError};
 use crate::recording::{input::Input, EventSource};
 use evcal_core::{
     event::{Event, SensorSize},
@@ -44,7 +44,8 @@ impl RawReader {
 
     /// Reads the header from `input`'s first bytes, then decodes the rest as `encoding`.
     pub(crate) fn from_input(mut input: Input, encoding: Encoding) -> Result<Self, ReadError> {
-        let header = Header::parse(input.peek(MAX_HEADER)?);
+        super::peek_header(&mut input)?;
+        let header = Header::parse(&input.head);
         let (sensor, sensor_from) = match header.sensor() {
             Some((s, from)) => (Some(s), from),
             None => (None, None),
