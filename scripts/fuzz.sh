@@ -51,7 +51,11 @@ for t in "${targets[@]}"; do
   # -max_total_time ends a run cleanly; a crash or a failure to run exits nonzero.
   log="$(mktemp)"
   status=0
-  cargo "${toolchain[@]}" fuzz run "$t" "corpus/$t" -- -max_total_time="$secs" -print_final_stats=1 >"$log" 2>&1 || status=$?
+  # The HDF5 C library allocates global state on first use (filter registry, error stacks),
+  # which LeakSanitizer reports as a leak of a run that cannot be reproduced alone.
+  extra=()
+  if [ "$t" = read_h5 ]; then extra=(-detect_leaks=0); fi
+  cargo "${toolchain[@]}" fuzz run "$t" "corpus/$t" -- -max_total_time="$secs" -print_final_stats=1 "${extra[@]}" >"$log" 2>&1 || status=$?
   grep -E '^(Done|stat::number_of_executed_units)|ERROR|panicked|SUMMARY|Test unit written' "$log" || true
   if [ "$status" -ne 0 ]; then
     tail -n 40 "$log" >&2
