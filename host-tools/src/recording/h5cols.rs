@@ -347,12 +347,28 @@ impl EventSource for H5ColumnsReader {
 /// Checks a dataset's compression parameters before any chunk is decompressed: hdf5-metno's
 /// Blosc filter dereferences a null name on an unknown compressor code (a crash, found by
 /// the random-damage test), so parameters that do not parse are refused here.
+///
+/// Chunks are limited to [`MAX_CHUNK_BYTES`]: HDF5 allocates a whole chunk to read any of it,
+/// so a corrupt chunk size would cost that much memory.
 pub(crate) fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
     d.dcpl()
         .and_then(|p| p.get_filters())
         .map(|_| ())
-        .map_err(|e| format!("its compression parameters are corrupt ({e})"))
+        .map_err(|e| format!("its compression parameters are corrupt ({e})"))?;
+    if let Some(chunk) = d.chunk() {
+        let item = d.dtype().map(|t| t.size()).unwrap_or(1) as u128;
+        let bytes = chunk.iter().map(|&n| n as u128).product::<u128>() * item;
+        if bytes > MAX_CHUNK_BYTES as u128 {
+            return Err(format!(
+                "chunks of {bytes} bytes: corrupt? (evcal reads chunks of up to {MAX_CHUNK_BYTES} bytes)"
+            ));
+        }
+    }
+    Ok(())
 }
+
+/// The largest HDF5 chunk read; writers use kilobytes to a few megabytes.
+pub(crate) const MAX_CHUNK_BYTES: u64 = 64 << 20;
 
 /// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
 /// message then only names its plugin directory).
