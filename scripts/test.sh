@@ -50,11 +50,12 @@ python3 scripts/make-format-fixtures.py target/test-data/formats-fresh
 EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test formats 2>&1 \
   | tee -a target/test-output.txt
 
-step "fuzz every decoder and the detection pipeline (bounded: ${EVCAL_FUZZ_SECONDS:-12} s per target)"
-# About 3-4 minutes on a fresh 2-core machine: installing cargo-fuzz ~65 s, building the
-# targets ~60 s, then each target. Longer runs: bash scripts/fuzz.sh 600
+step "fuzz every decoder, the detection pipeline and every host reader (bounded: ${EVCAL_FUZZ_SECONDS:-8} s per target)"
+# 13 targets (7 of the core, 6 host readers, which build the host library too): installing
+# cargo-fuzz ~65 s, building the targets, then 8 s each (104 s); kept under ~6 minutes.
+# Longer runs: bash scripts/fuzz.sh 600
 cargo fmt --manifest-path fuzz/Cargo.toml -- --check
-bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-12}"
+bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-8}"
 
 # The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
 # replay is 35 s of it), and the instruction budget over the benchmark's scenario about 25 s

@@ -142,6 +142,13 @@ pub enum ReadDetectionsError {
         /// What is wrong with it.
         message: String,
     },
+    /// A window out of order: repeated, earlier than the one before, or at the same time.
+    Order {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
 }
 
 impl std::fmt::Display for ReadDetectionsError {
@@ -152,25 +159,110 @@ impl std::fmt::Display for ReadDetectionsError {
                 f,
                 "line {line}: not a window record ({message}); expected one JSON object per line with \"seq\", \"t_ref_us\", \"events\", \"noise\", \"centers\", as `evcal detect` writes"
             ),
+            ReadDetectionsError::Order { line, message } => write!(
+                f,
+                "line {line}: {message}; evcal writes windows in order (files joined or edited? sort them by seq, drop repeats)"
+            ),
         }
     }
 }
 
 impl std::error::Error for ReadDetectionsError {}
 
+/// The longest line of a detections file read: a window of the most clusters is a few kB.
+pub const MAX_DETECTIONS_LINE: usize = 1 << 20;
+
 /// Reads a detections file (JSON lines, as `evcal detect`, `replay` and `collect` write it).
 /// Blank lines are skipped; any other line that is not a window record is an error naming
-/// the line, so nothing is dropped silently.
+/// the line, so nothing is dropped silently. Lines are at most [`MAX_DETECTIONS_LINE`]
+/// bytes. [`read_jsonl_in_order`] also checks the windows' order, as a calibration needs.
 pub fn read_jsonl(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+    Ok(parse_jsonl(input)?.into_iter().map(|(_, w)| w).collect())
+}
+
+/// [`read_jsonl`], and the windows must come in order, each with a larger `seq` and a
+/// `t_ref_us` no earlier than the one before, not all at one time: a file in reverse, with
+/// repeated windows or with one time for all (which calibrate worse, silently) is refused,
+/// not sorted, so that whatever made it can be fixed.
+pub fn read_jsonl_in_order(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
+    let windows = parse_jsonl(input)?;
+    for pair in windows.windows(2) {
+        let ((_, prev), (line, r)) = (&pair[0], &pair[1]);
+        let order = |message: String| ReadDetectionsError::Order { line: *line, message };
+        if r.seq == prev.seq {
+            return Err(order(format!("window {} again (a repeated window)", r.seq)));
+        }
+        if r.seq < prev.seq {
+            return Err(order(format!("window {} after window {} (out of order)", r.seq, prev.seq)));
+        }
+        if r.t_ref_us < prev.t_ref_us {
+            return Err(order(format!(
+                "window {} at {} µs, before window {} at {} µs (times out of order)",
+                r.seq, r.t_ref_us, prev.seq, prev.t_ref_us
+            )));
+        }
+    }
+    // Two windows may share a time (events of one timestamp, `--step-ms 0`); all of them
+    // cannot: the times were lost.
+    if let (Some((_, first)), Some((line, last))) = (windows.first(), windows.last()) {
+        if windows.len() > 1 && first.t_ref_us == last.t_ref_us {
+            return Err(ReadDetectionsError::Order {
+                line: *line,
+                message: format!(
+                    "all {} windows at the same time ({} µs: times all alike)",
+                    windows.len(),
+                    first.t_ref_us
+                ),
+            });
+        }
+    }
+    Ok(windows.into_iter().map(|(_, w)| w).collect())
+}
+
+/// The window records of a detections file, each with its line number.
+fn parse_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<(usize, WindowRecord)>, ReadDetectionsError> {
+    use std::io::{BufRead, Read};
     let mut out = Vec::new();
-    for (i, line) in input.lines().enumerate() {
-        let line = line.map_err(ReadDetectionsError::Io)?;
-        if line.trim().is_empty() {
+    let mut line = Vec::new();
+    let mut i = 0usize;
+    loop {
+        line.clear();
+        let n = (&mut input)
+            .take(MAX_DETECTIONS_LINE as u64 + 1)
+            .read_until(b'\n', &mut line)
+            .map_err(ReadDetectionsError::Io)?;
+        if n == 0 {
+            break;
+        }
+        i += 1;
+        if line.len() > MAX_DETECTIONS_LINE {
+            return Err(ReadDetectionsError::Line {
+                line: i,
+                message: format!(
+                    "longer than {MAX_DETECTIONS_LINE} bytes; it starts \"{}\"",
+                    crate::recording::quote(&line, 40)
+                ),
+            });
+        }
+        let mut text = std::str::from_utf8(&line).map_err(|e| ReadDetectionsError::Line {
+            line: i,
+            message: format!(
+                "not UTF-8 at byte {}; it starts \"{}\"",
+                e.valid_up_to() + 1,
+                crate::recording::quote(&line, 40)
+            ),
+        })?;
+        if i == 1 {
+            text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        }
+        if text.trim().is_empty() {
             continue;
         }
-        let r: WindowRecord = serde_json::from_str(&line)
-            .map_err(|e| ReadDetectionsError::Line { line: i + 1, message: e.to_string() })?;
-        out.push(r);
+        let r: WindowRecord = serde_json::from_str(text).map_err(|e| ReadDetectionsError::Line {
+            line: i,
+            message: format!("{e}; it starts \"{}\"", crate::recording::quote(text.trim().as_bytes(), 40)),
+        })?;
+        out.push((i, r));
     }
     Ok(out)
 }

@@ -32,6 +32,18 @@ impl H5Reader {
             ))
         })?;
         super::h5cols::check_filters(&ds).map_err(|m| err(format!("'events_data': {m}")))?;
+        // Any other type (strings, compounds of kilobytes) would make HDF5 allocate a
+        // conversion buffer of rows times its size before finding anything wrong (a corrupt
+        // file took 4 GB that way).
+        match ds.dtype().and_then(|t| t.to_descriptor()) {
+            Ok(
+                hdf5::types::TypeDescriptor::Float(_)
+                | hdf5::types::TypeDescriptor::Integer(_)
+                | hdf5::types::TypeDescriptor::Unsigned(_),
+            ) => {}
+            Ok(other) => return Err(err(format!("'events_data' holds {other:?}, not numbers"))),
+            Err(e) => return Err(err(format!("'events_data' has a type evcal cannot read: {e}"))),
+        }
         let shape = ds.shape();
         if shape.len() != 2 || shape[1] != 4 {
             return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));

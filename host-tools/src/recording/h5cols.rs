@@ -95,6 +95,9 @@ pub struct H5ColumnsReader {
     t: hdf5::Dataset,
     p: hdf5::Dataset,
     p_bool: bool,
+    /// `t` is u64: read as such, since HDF5's conversion to i64 saturates values above
+    /// i64::MAX to one value (every such event at the same time, silently).
+    t_u64: bool,
     time: TimeColumn,
     offset_us: i64,
     rows: usize,
@@ -112,6 +115,7 @@ struct Chunk {
     y: Vec<i64>,
     p: Vec<i64>,
     t: Vec<i64>,
+    tu: Vec<u64>,
     tf: Vec<f64>,
 }
 
@@ -159,7 +163,9 @@ impl H5ColumnsReader {
         let group = if prefix.is_empty() { None } else { file.group("events").ok() };
         let mut notes = Vec::new();
         let mut offset_us = 0i64;
-        let time = match kind(&t, "t")? {
+        let t_kind = kind(&t, "t")?;
+        let t_u64 = matches!(t_kind, TypeDescriptor::Unsigned(hdf5::types::IntSize::U8));
+        let time = match t_kind {
             TypeDescriptor::Float(_) => {
                 if unit.is_some_and(|u| u != TimeUnit::Seconds) {
                     return Err(err(format!("'{prefix}t' holds floats: evcal reads them as seconds only")));
@@ -205,6 +211,7 @@ impl H5ColumnsReader {
             t,
             p,
             p_bool,
+            t_u64,
             time,
             offset_us,
             rows,
@@ -256,6 +263,9 @@ impl H5ColumnsReader {
             ints(&self.p, "p")?
         };
         match self.time {
+            TimeColumn::Int(_) if self.t_u64 => {
+                self.buf.tu = self.t.read_slice_1d::<u64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
+            }
             TimeColumn::Int(_) => self.buf.t = ints(&self.t, "t")?,
             TimeColumn::FloatSeconds => {
                 self.buf.tf = self.t.read_slice_1d::<f64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
@@ -278,7 +288,14 @@ impl H5ColumnsReader {
         };
         let t_us = match self.time {
             TimeColumn::Int(u) => {
-                let v = self.buf.t[i];
+                let v = if self.t_u64 {
+                    let v = self.buf.tu[i];
+                    i64::try_from(v).map_err(|_| {
+                        format!("timestamp {v} {} is above the largest evcal reads ({})", u.name(), i64::MAX)
+                    })?
+                } else {
+                    self.buf.t[i]
+                };
                 u.to_us(v)
                     .and_then(|t| t.checked_add(self.offset_us))
                     .ok_or(format!("timestamp {v} {} overflows", u.name()))?
@@ -330,12 +347,28 @@ impl EventSource for H5ColumnsReader {
 /// Checks a dataset's compression parameters before any chunk is decompressed: hdf5-metno's
 /// Blosc filter dereferences a null name on an unknown compressor code (a crash, found by
 /// the random-damage test), so parameters that do not parse are refused here.
+///
+/// Chunks are limited to [`MAX_CHUNK_BYTES`]: HDF5 allocates a whole chunk to read any of it,
+/// so a corrupt chunk size would cost that much memory.
 pub(crate) fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
     d.dcpl()
         .and_then(|p| p.get_filters())
         .map(|_| ())
-        .map_err(|e| format!("its compression parameters are corrupt ({e})"))
+        .map_err(|e| format!("its compression parameters are corrupt ({e})"))?;
+    if let Some(chunk) = d.chunk() {
+        let item = d.dtype().map(|t| t.size()).unwrap_or(1) as u128;
+        let bytes = chunk.iter().map(|&n| n as u128).product::<u128>() * item;
+        if bytes > MAX_CHUNK_BYTES as u128 {
+            return Err(format!(
+                "chunks of {bytes} bytes: corrupt? (evcal reads chunks of up to {MAX_CHUNK_BYTES} bytes)"
+            ));
+        }
+    }
+    Ok(())
 }
+
+/// The largest HDF5 chunk read; writers use kilobytes to a few megabytes.
+pub(crate) const MAX_CHUNK_BYTES: u64 = 64 << 20;
 
 /// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
 /// message then only names its plugin directory).

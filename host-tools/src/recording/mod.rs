@@ -2,7 +2,8 @@
 //!
 //! Every reader streams (constant memory, whatever the file size) and reports a bad record
 //! with the file and the line or offset where it is, never a panic. The format is chosen by
-//! content and extension ([`Format::detect`]).
+//! content and extension ([`Format::detect`]), from bytes peeked into a buffer that the
+//! reader then consumes, so a pipe or standard input (`-`) loses nothing.
 
 mod aedat4;
 mod bag;
@@ -10,6 +11,7 @@ mod codec;
 mod flatbuf;
 mod h5;
 mod h5cols;
+mod input;
 pub mod prophesee;
 mod text;
 
@@ -17,13 +19,19 @@ pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as A
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use h5::{write_ecalib_h5, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
-pub use text::{write_text, TextReader};
+pub use input::{quote, STDIN_NAME};
+pub use text::{write_text, TextReader, MAX_LINE};
 
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Encoding, Evt21Order},
 };
-use std::{fmt, path::Path};
+use input::{Input, TeeHandle};
+use std::{
+    fmt,
+    path::{Path, PathBuf},
+    rc::Rc,
+};
 
 /// A recording format evcal reads.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -48,34 +56,23 @@ pub enum Format {
 
 impl Format {
     /// Chooses the format of `path` by its first bytes (the HDF5 signature, AEDAT4's
-    /// `#!AER-DAT4.0`, `#ROSBAG V`), falling back on the extension.
+    /// `#!AER-DAT4.0`, `#ROSBAG V`, a Prophesee `%` header), falling back on the extension.
+    /// A stream (`-`, a pipe) is consumed: open it with [`Recording::open`] instead.
     pub fn detect(path: &Path) -> Result<Self, ReadError> {
-        use std::io::Read;
-        let mut head = Vec::with_capacity(16);
-        let f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
-        f.take(16).read_to_end(&mut head).map_err(|e| ReadError::io(path, e))?;
-        if head.starts_with(b"\x89HDF\r\n\x1a\n") {
-            // Which HDF5 layout, by the datasets; E-Calib's reader lists them if none fits.
-            return Ok(h5cols::layout(path).unwrap_or(Format::EcalibH5));
-        }
-        // AEDAT 2 and 3 too: the AEDAT4 reader says they are not supported.
-        if head.starts_with(b"#!AER-DAT") {
-            return Ok(Format::Aedat4);
-        }
-        if head.starts_with(b"#ROSBAG V") {
-            return Ok(Format::RosBag);
-        }
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
-            if let Some(f) = prophesee::sniff(path, ext.as_deref())? {
-                return Ok(f);
+        let mut input = Input::open(path)?;
+        match sniff(&mut input, path)? {
+            Sniffed::Ready(f) => Ok(f),
+            Sniffed::Hdf5 => {
+                let tmp;
+                let p = match &input.path {
+                    Some(p) => p.as_path(),
+                    None => {
+                        tmp = input.spool()?;
+                        &*tmp
+                    }
+                };
+                Ok(h5cols::layout(p).unwrap_or(Format::EcalibH5))
             }
-        }
-        match ext.as_deref() {
-            Some("h5" | "hdf5") => Ok(Format::EcalibH5),
-            Some("aedat4") => Ok(Format::Aedat4),
-            Some("bag") => Ok(Format::RosBag),
-            _ => Ok(Format::Text),
         }
     }
 
@@ -95,6 +92,42 @@ impl Format {
             Format::RootColumnsH5 => "HDF5 (x,y,p,t at the root: e2calib)",
         }
     }
+}
+
+/// What the first bytes say.
+enum Sniffed {
+    Ready(Format),
+    /// HDF5: which layout needs the file itself (random access).
+    Hdf5,
+}
+
+/// The format by the input's first bytes (peeked, kept for the reader), else by the
+/// extension of `path`.
+fn sniff(input: &mut Input, path: &Path) -> Result<Sniffed, ReadError> {
+    let head = input.peek(16)?;
+    if head.starts_with(b"\x89HDF\r\n\x1a\n") {
+        return Ok(Sniffed::Hdf5);
+    }
+    // AEDAT 2 and 3 too: the AEDAT4 reader says they are not supported.
+    if head.starts_with(b"#!AER-DAT") {
+        return Ok(Sniffed::Ready(Format::Aedat4));
+    }
+    if head.starts_with(b"#ROSBAG V") {
+        return Ok(Sniffed::Ready(Format::RosBag));
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    if head.starts_with(b"%") || matches!(ext.as_deref(), Some("raw" | "dat")) {
+        prophesee::peek_header(input)?;
+        if let Some(f) = prophesee::sniff(&input.name, &input.head, ext.as_deref())? {
+            return Ok(Sniffed::Ready(f));
+        }
+    }
+    Ok(match ext.as_deref() {
+        Some("h5" | "hdf5") => Sniffed::Hdf5,
+        Some("aedat4") => Sniffed::Ready(Format::Aedat4),
+        Some("bag") => Sniffed::Ready(Format::RosBag),
+        _ => Sniffed::Ready(Format::Text),
+    })
 }
 
 /// Where in a file a problem was found.
@@ -129,6 +162,39 @@ impl ReadError {
     pub(crate) fn io(path: &Path, e: std::io::Error) -> Self {
         Self::new(path, Position::File, e.to_string())
     }
+
+    /// The error with the name `from` (a temporary copy) replaced by `to` (the stream's).
+    fn renamed(mut self, from: &Path, to: &Path) -> Self {
+        let (from, to) = (from.display().to_string(), to.display().to_string());
+        if self.path == from {
+            self.path.clone_from(&to);
+        }
+        self.message = self.message.replace(&from, &to);
+        self
+    }
+}
+
+/// A reader of a temporary copy, whose messages name the stream the copy is of.
+struct Renamed {
+    inner: Box<dyn EventSource>,
+    from: PathBuf,
+    to: PathBuf,
+    note: Option<String>,
+}
+
+impl EventSource for Renamed {
+    fn next_event(&mut self) -> Option<Result<Event, ReadError>> {
+        self.inner.next_event().map(|r| r.map_err(|e| e.renamed(&self.from, &self.to)))
+    }
+
+    fn progress_bytes(&self) -> u64 {
+        self.inner.progress_bytes()
+    }
+
+    fn notes(&self) -> Vec<String> {
+        let (from, to) = (self.from.display().to_string(), self.to.display().to_string());
+        self.note.iter().cloned().chain(self.inner.notes().into_iter().map(|n| n.replace(&from, &to))).collect()
+    }
 }
 
 impl fmt::Display for ReadError {
@@ -151,8 +217,12 @@ pub struct OpenOptions {
     /// name or id. Default: the file's only event stream, else the conventional one
     /// (`/dvs/events`, `events`).
     pub topic: Option<String>,
-    /// The unit of integer timestamps in HDF5 column layouts, instead of detecting it.
+    /// The unit of timestamps instead of detecting it: of integers in HDF5 column layouts,
+    /// of every time in a text recording.
     pub time_unit: Option<TimeUnit>,
+    /// Keep what is needed to read a stream a second time ([`Recording::rewind`]): a copy in
+    /// an unlinked temporary file, written as the stream is read (disk, not memory).
+    pub rewindable: bool,
 }
 
 /// An open recording: an iterator of events plus what the file says about itself.
@@ -163,9 +233,24 @@ pub struct Recording {
     pub sensor: Option<SensorSize>,
     /// Total events, when known without reading them all.
     pub len: Option<u64>,
-    /// Bytes in the file, for progress.
+    /// Bytes in the file, for progress (0 for a stream).
     pub file_bytes: u64,
     events: Box<dyn EventSource>,
+    origin: Origin,
+    opts: OpenOptions,
+}
+
+/// How to read a recording again.
+#[derive(Clone)]
+enum Origin {
+    /// A file: open it again.
+    File(PathBuf),
+    /// A stream copied to a temporary file first (a format that needs random access).
+    Spooled(PathBuf, Rc<tempfile::TempPath>),
+    /// A stream read through a copy.
+    Tee(PathBuf, TeeHandle),
+    /// A stream, not kept.
+    Stream(PathBuf),
 }
 
 /// A streaming reader of one format.
@@ -186,40 +271,151 @@ impl Recording {
         Self::open_with(path, &OpenOptions::default())
     }
 
-    /// Opens `path`, choosing the reader by [`Format::detect`].
+    /// Opens `path` (`-`: standard input), choosing the reader by [`Format::detect`]. A
+    /// stream is read as it comes, except in the formats that need random access (HDF5,
+    /// AEDAT4, ROS bag), which copy it to a temporary file first (a note says so).
     pub fn open_with(path: &Path, opts: &OpenOptions) -> Result<Self, ReadError> {
-        let format = Format::detect(path)?;
-        let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
-        let rec = |sensor, len, events: Box<dyn EventSource>| Self { format, sensor, len, file_bytes, events };
-        match format {
+        Self::from_input(Input::open(path)?, path, opts)
+    }
+
+    /// Reads a recording from the stream `r`, named `name` in messages (its extension counts
+    /// as a file's would), as [`Recording::open_with`] reads a pipe.
+    pub fn from_reader(name: &Path, r: Box<dyn std::io::Read>, opts: &OpenOptions) -> Result<Self, ReadError> {
+        Self::from_input(Input::stream(name, r), name, opts)
+    }
+
+    fn from_input(mut input: Input, path: &Path, opts: &OpenOptions) -> Result<Self, ReadError> {
+        let sniffed = sniff(&mut input, path)?;
+        let name = input.name.clone();
+        let file_bytes = input.len.unwrap_or(0);
+        let needs_file = match sniffed {
+            Sniffed::Hdf5 => true,
+            Sniffed::Ready(f) => matches!(f, Format::Aedat4 | Format::RosBag),
+        };
+        if needs_file {
+            return match input.path.clone() {
+                Some(p) => Self::open_file(&p, &name, sniffed, opts, Origin::File(p.clone()), file_bytes, None),
+                None => {
+                    let tmp = Rc::new(input.spool()?);
+                    let bytes = std::fs::metadata(&*tmp).map(|m| m.len()).unwrap_or(0);
+                    let note = format!(
+                        "{}: a stream: copied to a temporary file first ({bytes} bytes; this format needs random access)",
+                        name.display()
+                    );
+                    let origin = Origin::Spooled(name.clone(), Rc::clone(&tmp));
+                    Self::open_file(&tmp, &name, sniffed, opts, origin, bytes, Some(note))
+                }
+            };
+        }
+        let Sniffed::Ready(format) = sniffed else { unreachable!("HDF5 needs a file") };
+        let origin = match (&input.path, opts.rewindable) {
+            (Some(p), _) => Origin::File(p.clone()),
+            (None, false) => Origin::Stream(name.clone()),
+            (None, true) => {
+                let tee = TeeHandle::new(&input.head, std::mem::replace(&mut input.rest, Box::new(std::io::empty())))
+                    .map_err(|e| {
+                    ReadError::new(&name, Position::File, format!("cannot keep a copy in a temporary file: {e}"))
+                })?;
+                input.rest = Box::new(tee.clone());
+                Origin::Tee(name.clone(), tee)
+            }
+        };
+        let (sensor, len, events): (_, _, Box<dyn EventSource>) = match format {
             Format::Text => {
-                let r = TextReader::open(path)?;
-                Ok(rec(r.sensor(), None, Box::new(r)))
-            }
-            Format::EcalibH5 => {
-                let r = H5Reader::open(path)?;
-                Ok(rec(None, Some(r.len()), Box::new(r)))
-            }
-            Format::Aedat4 => {
-                let r = Aedat4Reader::open(path, opts.topic.as_deref())?;
-                Ok(rec(r.sensor(), r.len(), Box::new(r)))
-            }
-            Format::RosBag => {
-                let r = BagReader::open(path, opts.topic.as_deref())?;
-                Ok(rec(r.sensor(), None, Box::new(r)))
-            }
-            Format::EventsGroupH5 | Format::RootColumnsH5 => {
-                let r = H5ColumnsReader::open(path, format, opts.time_unit)?;
-                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
+                let r = text::from_input(input, opts.time_unit)?;
+                (r.sensor(), None, Box::new(r))
             }
             Format::PropheseeRaw(enc) => {
-                let r = prophesee::RawReader::open(path, enc)?;
-                Ok(rec(r.sensor(), None, Box::new(r)))
+                let r = prophesee::RawReader::from_input(input, enc)?;
+                (r.sensor(), None, Box::new(r))
             }
             Format::PropheseeDat => {
-                let r = prophesee::DatReader::open(path)?;
-                Ok(rec(r.sensor(), Some(r.len()), Box::new(r)))
+                let r = prophesee::DatReader::from_input(input)?;
+                (r.sensor(), r.len(), Box::new(r))
             }
+            _ => unreachable!("the formats that need a file are opened above"),
+        };
+        Ok(Self { format, sensor, len, file_bytes, events, origin, opts: opts.clone() })
+    }
+
+    /// Opens a format that needs random access from the file `file`, named `name` in
+    /// messages.
+    fn open_file(
+        file: &Path,
+        name: &Path,
+        sniffed: Sniffed,
+        opts: &OpenOptions,
+        origin: Origin,
+        file_bytes: u64,
+        note: Option<String>,
+    ) -> Result<Self, ReadError> {
+        let format = match sniffed {
+            Sniffed::Hdf5 => h5cols::layout(file).unwrap_or(Format::EcalibH5),
+            Sniffed::Ready(f) => f,
+        };
+        let rename = |e: ReadError| e.renamed(file, name);
+        let (sensor, len, events): (_, _, Box<dyn EventSource>) = match format {
+            Format::EcalibH5 => {
+                let r = H5Reader::open(file).map_err(rename)?;
+                (None, Some(r.len()), Box::new(r))
+            }
+            Format::Aedat4 => {
+                let r = Aedat4Reader::open(file, opts.topic.as_deref()).map_err(rename)?;
+                (r.sensor(), r.len(), Box::new(r))
+            }
+            Format::RosBag => {
+                let r = BagReader::open(file, opts.topic.as_deref()).map_err(rename)?;
+                (r.sensor(), None, Box::new(r))
+            }
+            Format::EventsGroupH5 | Format::RootColumnsH5 => {
+                let r = H5ColumnsReader::open(file, format, opts.time_unit).map_err(rename)?;
+                (r.sensor(), Some(r.len()), Box::new(r))
+            }
+            _ => unreachable!("only the formats that need a file"),
+        };
+        let events: Box<dyn EventSource> = if file == name {
+            events
+        } else {
+            Box::new(Renamed { inner: events, from: file.to_path_buf(), to: name.to_path_buf(), note })
+        };
+        Ok(Self { format, sensor, len, file_bytes, events, origin, opts: opts.clone() })
+    }
+
+    /// The same recording from its start, for a second pass: a file is opened again, a
+    /// stream read from the copy kept of it (the rest of the stream is copied first). A
+    /// stream opened without [`OpenOptions::rewindable`] cannot be read again: an error.
+    pub fn rewind(&self) -> Result<Recording, ReadError> {
+        match &self.origin {
+            Origin::File(p) => Self::open_with(p, &self.opts),
+            Origin::Spooled(name, tmp) => {
+                let sniffed = match self.format {
+                    Format::EcalibH5 | Format::EventsGroupH5 | Format::RootColumnsH5 => Sniffed::Hdf5,
+                    f => Sniffed::Ready(f),
+                };
+                let origin = self.origin.clone();
+                Self::open_file(tmp, name, sniffed, &self.opts, origin, self.file_bytes, None)
+            }
+            Origin::Tee(name, tee) => {
+                let f = tee.finish().map_err(|e| {
+                    ReadError::new(name, Position::File, format!("cannot read the copy kept of the stream: {e}"))
+                })?;
+                let input = Input::from_file(name, None, f)?;
+                let mut r = Self::from_input(input, name, &OpenOptions { rewindable: false, ..self.opts.clone() })?;
+                r.origin = self.origin.clone();
+                Ok(r)
+            }
+            Origin::Stream(name) => Err(ReadError::new(
+                name,
+                Position::File,
+                "a stream cannot be read a second time (it was opened without keeping a copy)",
+            )),
+        }
+    }
+
+    /// The name of the recording in messages: its path, or [`STDIN_NAME`].
+    pub fn name(&self) -> &Path {
+        match &self.origin {
+            Origin::File(p) | Origin::Spooled(p, _) | Origin::Tee(p, _) | Origin::Stream(p) => p,
         }
     }
 

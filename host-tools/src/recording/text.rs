@@ -3,39 +3,77 @@
 //! Lines starting with `#` or `%` are comments. A first data line of exactly two integers
 //! is read as the sensor size `width height` (some datasets write one). Seconds are parsed
 //! as exact decimals, so `12.000001` is 12 000 001 µs, not whatever a float rounds it to.
+//!
+//! Times are seconds unless the caller gives a unit; a file whose first nonzero time is an
+//! integer (no decimal point) holds ticks, taken as µs (ns from 1e17, Unix time in ns), and
+//! a note says so. A line is at most [`MAX_LINE`] bytes: a longer one (a binary file, a
+//! stream of NUL bytes) ends the read with an error quoting its start, in constant memory.
 
-use super::{EventSource, Position, ReadError};
+use super::{
+    input::{quote, Input},
+    EventSource, Position, ReadError, TimeUnit,
+};
 use evcal_core::event::{Event, SensorSize};
 use std::{
     fs::File,
-    io::{BufRead, BufReader, BufWriter, Write},
+    io::{BufRead, BufReader, BufWriter, Read, Write},
     path::{Path, PathBuf},
 };
+
+/// The longest line read: an event line is some 30 bytes, a comment rarely a few hundred.
+pub const MAX_LINE: usize = 4096;
+
+/// Bytes of a bad line quoted in a message.
+const QUOTE: usize = 40;
+
+/// How times are read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Times {
+    /// Not decided yet: every time so far was zero.
+    Undecided,
+    /// Given by the caller.
+    Given(TimeUnit),
+    /// Decimal seconds, the layout's convention.
+    Seconds,
+    /// Integer ticks of a unit guessed from the first nonzero time.
+    Ticks(TimeUnit),
+}
 
 /// Streaming reader of text recordings.
 pub struct TextReader {
     path: PathBuf,
-    lines: BufReader<File>,
+    lines: BufReader<Box<dyn Read>>,
     line_no: u64,
     bytes: u64,
-    buf: String,
+    line: Vec<u8>,
     sensor: Option<SensorSize>,
+    times: Times,
+    notes: Vec<String>,
     /// A data line read while looking for the header, not yet returned.
     held: Option<Result<Event, ReadError>>,
     failed: bool,
 }
 
 impl TextReader {
-    /// Opens `path` and reads its optional sensor-size header.
+    /// Opens `path` and reads its optional sensor-size header; times in seconds unless the
+    /// file's integers say otherwise.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
         let f = File::open(path).map_err(|e| ReadError::io(path, e))?;
+        Self::from_reader(path, Box::new(f), None)
+    }
+
+    /// Reads a text recording from `r`, named `name` in messages, with times in `unit` if
+    /// given (decimals allowed in any unit).
+    pub fn from_reader(name: &Path, r: Box<dyn Read>, unit: Option<TimeUnit>) -> Result<Self, ReadError> {
         let mut r = Self {
-            path: path.to_path_buf(),
-            lines: BufReader::with_capacity(1 << 16, f),
+            path: name.to_path_buf(),
+            lines: BufReader::with_capacity(1 << 16, r),
             line_no: 0,
             bytes: 0,
-            buf: String::new(),
+            line: Vec::new(),
             sensor: None,
+            times: unit.map_or(Times::Undecided, Times::Given),
+            notes: Vec::new(),
             held: None,
             failed: false,
         };
@@ -49,14 +87,17 @@ impl TextReader {
                     (Ok(w), Ok(h)) if w > 0 && h > 0 => r.sensor = Some(SensorSize::new(w, h)),
                     _ => {
                         return Err(ReadError::new(
-                            path,
+                            name,
                             Position::Line(r.line_no),
-                            format!("expected 't x y p' or a 'width height' header, found '{line}'"),
+                            format!(
+                                "expected 't x y p' or a 'width height' header, found \"{}\"",
+                                quote(line.as_bytes(), QUOTE)
+                            ),
                         ))
                     }
                 }
             } else {
-                r.held = Some(parse_event(&line).map_err(|m| ReadError::new(path, Position::Line(r.line_no), m)));
+                r.held = Some(r.parse_event(&line));
             }
         }
         Ok(r)
@@ -67,29 +108,162 @@ impl TextReader {
         self.sensor
     }
 
+    fn error(&self, line: u64, m: impl Into<String>) -> ReadError {
+        ReadError::new(&self.path, Position::Line(line), m)
+    }
+
+    /// Reads one line into `self.line` (without its end), at most [`MAX_LINE`] bytes;
+    /// `Ok(false)` at the end of the input.
+    fn read_line(&mut self) -> Result<bool, ReadError> {
+        self.line.clear();
+        let at = self.line_no + 1;
+        let mut any = false;
+        loop {
+            let buf = match self.lines.fill_buf() {
+                Ok(b) => b,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(self.error(at, e.to_string())),
+            };
+            if buf.is_empty() {
+                break;
+            }
+            any = true;
+            let (take, end) = match buf.iter().position(|&b| b == b'\n') {
+                Some(i) => (i + 1, true),
+                None => (buf.len(), false),
+            };
+            let room = MAX_LINE + 1 - self.line.len();
+            self.line.extend_from_slice(&buf[..take.min(room)]);
+            self.lines.consume(take);
+            self.bytes += take as u64;
+            if self.line.len() > MAX_LINE {
+                return Err(self.error(
+                    at,
+                    format!(
+                        "a line longer than {MAX_LINE} bytes (it starts \"{}\"): not a text recording of one event a line?",
+                        quote(&self.line, QUOTE)
+                    ),
+                ));
+            }
+            if end {
+                break;
+            }
+        }
+        if !any {
+            return Ok(false);
+        }
+        self.line_no += 1;
+        while self.line.last().is_some_and(|&b| b == b'\n' || b == b'\r') {
+            self.line.pop();
+        }
+        Ok(true)
+    }
+
     fn next_data_line(&mut self) -> Option<Result<String, ReadError>> {
         loop {
-            self.buf.clear();
-            match self.lines.read_line(&mut self.buf) {
-                Ok(0) => return None,
-                Ok(n) => {
-                    self.line_no += 1;
-                    self.bytes += n as u64;
-                    let t = self.buf.trim();
-                    if t.is_empty() || t.starts_with('#') || t.starts_with('%') {
-                        continue;
-                    }
-                    return Some(Ok(t.to_string()));
-                }
-                Err(e) => {
-                    let msg = if e.kind() == std::io::ErrorKind::InvalidData {
-                        "not UTF-8 text: is this a binary recording with the wrong extension?".to_string()
-                    } else {
-                        e.to_string()
-                    };
-                    return Some(Err(ReadError::new(&self.path, Position::Line(self.line_no + 1), msg)));
+            match self.read_line() {
+                Ok(false) => return None,
+                Ok(true) => {}
+                Err(e) => return Some(Err(e)),
+            }
+            let mut bytes = &self.line[..];
+            if self.line_no == 1 {
+                if let Some(b) = bytes.strip_prefix("\u{feff}".as_bytes()) {
+                    bytes = b;
+                    self.notes
+                        .push(format!("{}: a UTF-8 byte-order mark at the start was skipped", self.path.display()));
                 }
             }
+            let t = match std::str::from_utf8(bytes) {
+                Ok(t) => t.trim(),
+                Err(e) => {
+                    return Some(Err(self.error(
+                        self.line_no,
+                        format!(
+                            "not UTF-8 text (byte {} of the line; it starts \"{}\"): is this a binary recording with the wrong extension?",
+                            e.valid_up_to() + 1,
+                            quote(bytes, QUOTE)
+                        ),
+                    )))
+                }
+            };
+            if let Some(i) = bytes.iter().position(|&b| b == 0) {
+                return Some(Err(self.error(
+                    self.line_no,
+                    format!(
+                        "a NUL byte at column {} (the line starts \"{}\"): binary data, not a text recording",
+                        i + 1,
+                        quote(bytes, QUOTE)
+                    ),
+                )));
+            }
+            if t.is_empty() || t.starts_with('#') || t.starts_with('%') {
+                continue;
+            }
+            return Some(Ok(t.to_string()));
+        }
+    }
+
+    fn parse_event(&mut self, line: &str) -> Result<Event, ReadError> {
+        let line_no = self.line_no;
+        let q = || quote(line.as_bytes(), QUOTE);
+        let mut it = line.split_whitespace();
+        let (Some(t), Some(x), Some(y), Some(p)) = (it.next(), it.next(), it.next(), it.next()) else {
+            let hint = if line.starts_with('{') { " (detections? they are read from a .jsonl file)" } else { "" };
+            return Err(self.error(line_no, format!("expected 4 fields 't x y p', found \"{}\"{hint}", q())));
+        };
+        if it.next().is_some() {
+            return Err(self.error(line_no, format!("expected 4 fields 't x y p', found more: \"{}\"", q())));
+        }
+        let t_us = self.time(t).map_err(|m| self.error(line_no, m))?;
+        let bad = |m: String| self.error(line_no, m);
+        let x: u16 = x
+            .parse()
+            .map_err(|_| bad(format!("bad x '{}' (an integer pixel column 0..65535)", quote(x.as_bytes(), QUOTE))))?;
+        let y: u16 = y
+            .parse()
+            .map_err(|_| bad(format!("bad y '{}' (an integer pixel row 0..65535)", quote(y.as_bytes(), QUOTE))))?;
+        let polarity = match p {
+            "1" | "+1" | "true" => true,
+            "0" | "-1" | "false" => false,
+            _ => return Err(bad(format!("bad polarity '{}' (1/0 or 1/-1)", quote(p.as_bytes(), QUOTE)))),
+        };
+        Ok(Event { t_us, x, y, polarity })
+    }
+
+    /// The time `t` in µs, deciding the unit at the first nonzero time.
+    fn time(&mut self, t: &str) -> Result<u64, String> {
+        let bad = || format!("bad timestamp '{}' (seconds, e.g. 0.001234)", quote(t.as_bytes(), QUOTE));
+        let integer = !t.is_empty() && t.trim_start_matches('+').bytes().all(|b| b.is_ascii_digit());
+        if self.times == Times::Undecided {
+            if integer && t.trim_start_matches('+').bytes().all(|b| b == b'0') {
+                return Ok(0);
+            }
+            if integer {
+                let v: u128 = t.trim_start_matches('+').parse().map_err(|_| bad())?;
+                let unit = if v >= 100_000_000_000_000_000 { TimeUnit::Nanoseconds } else { TimeUnit::Microseconds };
+                self.times = Times::Ticks(unit);
+                self.notes.push(format!(
+                    "{}: the times are integers (the first nonzero one, line {}, is {t}): taken as {} ticks, not seconds; set --time-unit to override",
+                    self.path.display(),
+                    self.line_no,
+                    unit.name()
+                ));
+            } else {
+                self.times = Times::Seconds;
+            }
+        }
+        match self.times {
+            Times::Given(u) => to_us(t, u).ok_or_else(|| {
+                format!("bad timestamp '{}' (a non-negative number of {})", quote(t.as_bytes(), QUOTE), u.name())
+            }),
+            Times::Ticks(u) if !integer => Err(format!(
+                "timestamp '{}' is not an integer, but the times before it were (taken as {} ticks): mixed units? set --time-unit",
+                quote(t.as_bytes(), QUOTE),
+                u.name()
+            )),
+            Times::Ticks(u) => to_us(t, u).ok_or_else(bad),
+            Times::Seconds | Times::Undecided => seconds_to_us(t).ok_or_else(bad),
         }
     }
 }
@@ -103,7 +277,7 @@ impl EventSource for TextReader {
             h
         } else {
             match self.next_data_line()? {
-                Ok(line) => parse_event(&line).map_err(|m| ReadError::new(&self.path, Position::Line(self.line_no), m)),
+                Ok(line) => self.parse_event(&line),
                 Err(e) => Err(e),
             }
         };
@@ -115,33 +289,37 @@ impl EventSource for TextReader {
     fn progress_bytes(&self) -> u64 {
         self.bytes
     }
+
+    fn notes(&self) -> Vec<String> {
+        self.notes.clone()
+    }
 }
 
-fn parse_event(line: &str) -> Result<Event, String> {
-    let mut it = line.split_whitespace();
-    let (Some(t), Some(x), Some(y), Some(p)) = (it.next(), it.next(), it.next(), it.next()) else {
-        return Err(format!("expected 4 fields 't x y p', found '{line}'"));
-    };
-    if it.next().is_some() {
-        return Err(format!("expected 4 fields 't x y p', found more: '{line}'"));
-    }
-    let t_us = seconds_to_us(t).ok_or_else(|| format!("bad timestamp '{t}' (seconds, e.g. 0.001234)"))?;
-    let x: u16 = x.parse().map_err(|_| format!("bad x '{x}' (an integer pixel column 0..65535)"))?;
-    let y: u16 = y.parse().map_err(|_| format!("bad y '{y}' (an integer pixel row 0..65535)"))?;
-    let polarity = match p {
-        "1" | "+1" | "true" => true,
-        "0" | "-1" | "false" => false,
-        _ => return Err(format!("bad polarity '{p}' (1/0 or 1/-1)")),
-    };
-    Ok(Event { t_us, x, y, polarity })
+/// Opens a text recording on an input whose head was peeked.
+pub(crate) fn from_input(input: Input, unit: Option<TimeUnit>) -> Result<TextReader, ReadError> {
+    let name = input.name.clone();
+    TextReader::from_reader(&name, Box::new(input.into_reader()), unit)
 }
 
 /// Seconds as a decimal string to whole microseconds, rounding half up; exact for plain
 /// decimals, through f64 for exponent forms. `None` for negative, non-finite or huge values.
 fn seconds_to_us(s: &str) -> Option<u64> {
+    to_us(s, TimeUnit::Seconds)
+}
+
+/// A decimal number of `unit` to whole microseconds, rounding half up (on the first digit
+/// past the µs, as a hand would); exact for plain decimals, through f64 for exponent forms.
+fn to_us(s: &str, unit: TimeUnit) -> Option<u64> {
+    let e: i32 = match unit {
+        TimeUnit::Seconds => 6,
+        TimeUnit::Milliseconds => 3,
+        TimeUnit::Microseconds => 0,
+        TimeUnit::Nanoseconds => -3,
+    };
     if s.contains(['e', 'E']) {
         let v: f64 = s.parse().ok()?;
-        return (0.0..1.8e13).contains(&v).then(|| (v * 1e6).round() as u64);
+        let us = v * 10f64.powi(e);
+        return (0.0..1.8e19).contains(&us).then(|| us.round() as u64);
     }
     let s = s.strip_prefix('+').unwrap_or(s);
     let (int, frac) = s.split_once('.').unwrap_or((s, ""));
@@ -151,14 +329,24 @@ fn seconds_to_us(s: &str) -> Option<u64> {
     {
         return None;
     }
-    let whole: u64 = if int.is_empty() { 0 } else { int.parse().ok()? };
-    let mut micro: u64 = 0;
-    for (i, b) in frac.bytes().chain(std::iter::repeat(b'0')).take(6).enumerate() {
-        let _ = i;
-        micro = micro * 10 + u64::from(b - b'0');
+    let int = int.trim_start_matches('0');
+    if int.len() > 24 {
+        return None;
     }
-    let round_up = frac.as_bytes().get(6).is_some_and(|&b| b >= b'5');
-    whole.checked_mul(1_000_000)?.checked_add(micro + u64::from(round_up))
+    // Digits past the first one below a µs cannot change the rounding.
+    let keep = &frac[..frac.len().min((e + 1).max(0) as usize)];
+    let mut n: u128 = 0;
+    for b in int.bytes().chain(keep.bytes()) {
+        n = n * 10 + u128::from(b - b'0');
+    }
+    let d = e - keep.len() as i32;
+    let us = if d >= 0 {
+        n * 10u128.pow(d as u32)
+    } else {
+        let div = 10u128.pow((-d) as u32);
+        (n + div / 2) / div
+    };
+    u64::try_from(us).ok()
 }
 
 /// Writes events as a text recording (`t x y p`, t in seconds with 6 decimals), with a

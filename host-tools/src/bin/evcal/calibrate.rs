@@ -1,7 +1,9 @@
 //! `evcal calibrate`: from a recording or collected detections to intrinsics and the files
 //! users paste into their stack.
 
-use crate::common::{outln, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
+use crate::common::{
+    check_writable, outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
@@ -9,7 +11,7 @@ use evcal_host::{
     detections::{self, WindowRecord},
     export::{write_all, Export},
     grid::Pattern,
-    pipeline::{calibrate_views, views_from_windows, Outcome, Setup, Views},
+    pipeline::{calibrate_views, views_from_windows, Outcome, PipelineError, Setup, Views},
     recording::parse_sensor,
 };
 use std::path::{Path, PathBuf};
@@ -133,12 +135,20 @@ impl SolveArgs {
 
 /// Whether `path` holds detections (JSON lines) rather than events.
 fn is_detections(path: &Path) -> Result<bool> {
+    if path.as_os_str() == "-" {
+        // Standard input cannot be sniffed and then read again by another reader.
+        return Ok(false);
+    }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if matches!(ext.as_str(), "jsonl" | "ndjson") {
         return Ok(true);
     }
     if ext == "json" {
         return Ok(true);
+    }
+    // A stream sniffed here would lose those bytes for the recording's reader.
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return Ok(false);
     }
     // Otherwise sniff: a detections file starts with '{'.
     use std::io::Read;
@@ -150,8 +160,42 @@ fn is_detections(path: &Path) -> Result<bool> {
     Ok(head[..n].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
 }
 
+/// The printed boards spacings lie between (metres): a spacing outside is a wrong unit or a
+/// typo, and the views it gives fail far from where it was given.
+const SPACING_RANGE: std::ops::RangeInclusive<f64> = 0.001..=1.0;
+
+/// Checks `--spacing` for a plausible length in metres.
+pub fn check_spacing(spacing: f64) -> Result<()> {
+    if !SPACING_RANGE.contains(&spacing) {
+        let hint = if (1.0..=1000.0).contains(&spacing) {
+            format!(": metres, not millimetres? ({spacing} mm is --spacing {})", spacing * 1e-3)
+        } else {
+            String::new()
+        };
+        bail!(
+            "--spacing {spacing}: a printed board's circle spacing is {} to {} m{hint}",
+            SPACING_RANGE.start(),
+            SPACING_RANGE.end()
+        );
+    }
+    Ok(())
+}
+
+/// Checks that the outputs can be written, before any work.
+pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        bail!("--out {}: exists and is not a folder", out.display());
+    }
+    if let Some(j) = json {
+        check_writable(j, "--json")?;
+    }
+    Ok(())
+}
+
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
+    check_spacing(a.target.spacing)?;
+    check_outputs(&a.out, a.json.as_deref())?;
     let (windows, size) = if is_detections(&a.input)? {
         let Some(s) = a.core.sensor.as_deref() else {
             bail!(
@@ -160,14 +204,18 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             )
         };
         let sensor = parse_sensor(s).map_err(anyhow::Error::msg)?;
+        // The detection options do not apply to detections made already, but a bad value is
+        // still a mistake to say rather than ignore.
+        a.core.config(sensor)?;
         let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
-        let w = detections::read_jsonl(std::io::BufReader::new(f)).with_context(|| a.input.display().to_string())?;
+        let w = detections::read_jsonl_in_order(std::io::BufReader::new(f))
+            .with_context(|| a.input.display().to_string())?;
         (w, sensor)
     } else {
         detect(&a)?
     };
     if windows.is_empty() {
-        bail!("{}: no detection windows (an empty file, or fewer events than one window holds)", a.input.display());
+        bail!("{}: no detection windows (an empty file)", a.input.display());
     }
     let mut setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
     if let Some(r) = a.target.radius {
@@ -189,7 +237,22 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         );
     }
     let views = find_views(&windows, &setup, a.quiet);
-    let outcome = solve(&views, &setup)?;
+    let outcome = solve(&views, &setup).map_err(|e| {
+        // The finder's own message names the pattern; a wrong sensor size (centres
+        // normalised, clustered and kept by it) fails the same way.
+        let no_grid = e.downcast_ref::<PipelineError>().is_some_and(|p| matches!(p, PipelineError::NoGrid(s) if s.windows > 0));
+        if no_grid {
+            e.context(format!(
+                "{}: no grid found on a {}x{} sensor with --pattern {}; if that size is not the camera's, give --sensor WxH",
+                a.input.display(),
+                size.width,
+                size.height,
+                a.target.pattern
+            ))
+        } else {
+            e
+        }
+    })?;
     let written = export(&views, &outcome, &a.out, a.json.as_deref())?;
     report(&views, &outcome, &setup, None)?;
     list_written(&written)?;
@@ -216,8 +279,8 @@ fn indent(s: &str) -> String {
 
 /// Runs the detection core over the recording.
 fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
-    let rec = a.read.open(&a.input, a.quiet)?;
-    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.input, &rec, &a.read.options(), a.quiet)?;
+    let rec = a.read.open(&a.input, a.quiet, a.core.sensor.is_none())?;
+    let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
     let cfg = a.core.config(sensor)?;
     if !a.quiet {
         eprintln!("evcal: {}", a.core.window_line(&cfg));
@@ -236,6 +299,23 @@ fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::Se
     pb.finish_and_clear();
     if !a.quiet {
         eprintln!("evcal: {} events, {} windows, {} centres", summary.events_read, summary.windows, summary.centres);
+    }
+    let name = rec.name().display();
+    if let Some(w) = outside_warning(summary.out_of_sensor, summary.events_read, sensor) {
+        eprintln!("evcal: warning: {name}: {w}");
+    }
+    if windows.is_empty() {
+        let s = &summary;
+        let kept = s.events_read.saturating_sub(s.out_of_sensor + s.time_backwards);
+        bail!(
+            "{name}: no detection window: {} events read, {} of them outside the {}x{} sensor and {} earlier than the one before (dropped), leaving {kept}: fewer than one window of {} events",
+            s.events_read,
+            s.out_of_sensor,
+            sensor.width,
+            sensor.height,
+            s.time_backwards,
+            cfg.window.events
+        );
     }
     Ok((windows, sensor))
 }

@@ -1,6 +1,6 @@
 //! `evcal collect`: record the detections of a device that has its own sensor.
 
-use crate::common::{output, spinner, stop_on_ctrl_c, LinkArgs};
+use crate::common::{check_writable, output, spinner, stop_on_ctrl_c, LinkArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::link::{
@@ -33,6 +33,9 @@ pub fn run(a: CollectArgs) -> Result<()> {
         Some(s) => Some(Duration::from_secs_f64(s)),
         None => None,
     };
+    if let Some(o) = &a.out {
+        check_writable(o, "--out")?;
+    }
     let stop = stop_on_ctrl_c();
     let link = a.link.open()?;
     let mut out = output(a.out.as_deref())?;

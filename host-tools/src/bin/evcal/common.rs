@@ -29,9 +29,10 @@ pub struct ReadArgs {
     /// stream's name or id (default: the only one, else 'events').
     #[arg(long, value_name = "NAME")]
     pub topic: Option<String>,
-    /// Unit of integer timestamps in HDF5 files laid out as x, y, t, p datasets: s, ms, us or
-    /// ns. Default: from the file's attributes, DSEC's t_offset, else from the values (a note
-    /// on standard error says which and why).
+    /// Unit of timestamps: s, ms, us or ns. Text recordings: of every time (default seconds,
+    /// or µs when the times are integers). HDF5 files laid out as x, y, t, p datasets: of
+    /// integer times (default: from the file's attributes, DSEC's t_offset, else from the
+    /// values). A guess is said in a note on standard error, with its reason.
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
 }
@@ -43,13 +44,14 @@ fn parse_time_unit(s: &str) -> Result<TimeUnit, String> {
 impl ReadArgs {
     /// The reader options these arguments give.
     pub fn options(&self) -> OpenOptions {
-        OpenOptions { topic: self.topic.clone(), time_unit: self.time_unit }
+        OpenOptions { topic: self.topic.clone(), time_unit: self.time_unit, rewindable: false }
     }
 
-    /// Opens `path`, printing the reader's notes (a guessed unit, a missing index) unless
-    /// `quiet`.
-    pub fn open(&self, path: &Path, quiet: bool) -> Result<Recording> {
-        let rec = Recording::open_with(path, &self.options())?;
+    /// Opens `path` (`-`: standard input), printing the reader's notes (a guessed unit, a
+    /// missing index) unless `quiet`. `second_pass`: a stream is copied as it is read, so that
+    /// [`resolve_sensor`] can read it again to guess the sensor size.
+    pub fn open(&self, path: &Path, quiet: bool, second_pass: bool) -> Result<Recording> {
+        let rec = Recording::open_with(path, &OpenOptions { rewindable: second_pass, ..self.options() })?;
         if !quiet {
             for n in &rec.notes() {
                 eprintln!("evcal: note: {n}");
@@ -157,42 +159,61 @@ pub fn window_line(window: WindowConfig, sensor: SensorSize, given: bool) -> Str
     format!("windows: {} events every {:.0} ms ({why})", window.events, window.step_us as f64 * 1e-3)
 }
 
-/// The sensor size: given, else from the file, else guessed from a pass over the events.
-pub fn resolve_sensor(
-    given: Option<&str>,
-    path: &Path,
-    rec: &Recording,
-    opts: &OpenOptions,
-    quiet: bool,
-) -> Result<SensorSize> {
+/// The sensor size: given, else from the file, else guessed from a pass over the events;
+/// and the recording to detect on, from its start (read again after a guessing pass).
+pub fn resolve_sensor(given: Option<&str>, rec: Recording, quiet: bool) -> Result<(SensorSize, Recording)> {
+    let name = rec.name().display().to_string();
     if let Some(s) = given {
-        return parse_sensor(s).map_err(anyhow::Error::msg);
+        let s = parse_sensor(s).map_err(anyhow::Error::msg)?;
+        if let Some(f) = rec.sensor.filter(|&f| f != s) {
+            if !quiet {
+                eprintln!(
+                    "evcal: note: {name} states a {}x{} sensor; --sensor {}x{} is used instead",
+                    f.width, f.height, s.width, s.height
+                );
+            }
+        }
+        return Ok((s, rec));
     }
     if let Some(s) = rec.sensor {
-        return Ok(s);
+        return Ok((s, rec));
     }
     let (mut mx, mut my, mut any) = (0u16, 0u16, false);
-    for e in Recording::open_with(path, opts)? {
+    let mut rec = rec;
+    for e in &mut rec {
         let e = e?;
         mx = mx.max(e.x);
         my = my.max(e.y);
         any = true;
     }
     if !any {
-        bail!("{}: no events", path.display());
+        bail!("{name}: no events");
     }
     let s = guess_sensor(mx, my);
     if !quiet {
         eprintln!(
-            "evcal: note: {} does not state its sensor size; using {}x{} (largest x {}, y {}); set --sensor WxH to be sure",
-            path.display(),
-            s.width,
-            s.height,
-            mx,
-            my
+            "evcal: note: {name} does not state its sensor size; using {}x{} (largest x {}, y {}); set --sensor WxH to be sure",
+            s.width, s.height, mx, my
         );
     }
-    Ok(s)
+    Ok((s, rec.rewind()?))
+}
+
+/// Above this share of events outside the sensor, the sensor size is probably wrong.
+pub const OUTSIDE_WARN_SHARE: f64 = 0.03;
+
+/// The warning for `outside` of `events` lying outside `sensor`, when they are more than
+/// [`OUTSIDE_WARN_SHARE`] of them.
+pub fn outside_warning(outside: u64, events: u64, sensor: SensorSize) -> Option<String> {
+    let share = outside as f64 / events.max(1) as f64;
+    (share > OUTSIDE_WARN_SHARE).then(|| {
+        format!(
+            "{:.1} % of the events ({outside} of {events}) lie outside the {}x{} sensor (the detector drops them): the sensor size is probably wrong (--sensor WxH)",
+            100.0 * share,
+            sensor.width,
+            sensor.height
+        )
+    })
 }
 
 pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
@@ -371,6 +392,20 @@ impl Output {
             Some(p) => anyhow::Error::new(e).context(format!("writing {}", p.display())),
         }
     }
+}
+
+/// Checks before any work that `path` can be written: not a directory, its folder exists.
+/// A run that fails only at its end, after minutes of work and other files written, is the
+/// worse failure.
+pub fn check_writable(path: &Path, what: &str) -> Result<()> {
+    if path.is_dir() {
+        bail!("{what} {}: is a directory; give a file name", path.display());
+    }
+    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if !parent.is_dir() {
+        bail!("{what} {}: the folder {} does not exist", path.display(), parent.display());
+    }
+    Ok(())
 }
 
 /// Standard output or a created file, buffered.

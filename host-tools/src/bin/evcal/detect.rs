@@ -1,6 +1,8 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
-use crate::common::{output, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs};
+use crate::common::{
+    check_writable, output, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_host::detections::{self, WindowRecord};
@@ -9,7 +11,8 @@ use std::{cell::Cell, path::PathBuf};
 #[derive(Args)]
 pub struct DetectArgs {
     /// The recording: text (`t x y p`, t in seconds), AEDAT4, ROS1 bag (dvs_msgs/EventArray)
-    /// or HDF5 (E-Calib's `events_data`, `events/{x,y,t,p}`, e2calib's root `x, y, p, t`).
+    /// or HDF5 (E-Calib's `events_data`, `events/{x,y,t,p}`, e2calib's root `x, y, p, t`);
+    /// `-` for standard input.
     pub recording: PathBuf,
     #[command(flatten)]
     pub read: ReadArgs,
@@ -24,9 +27,12 @@ pub struct DetectArgs {
 }
 
 pub fn run(a: DetectArgs) -> Result<()> {
-    let rec = a.read.open(&a.recording, a.quiet)?;
+    if let Some(o) = &a.out {
+        check_writable(o, "--out")?;
+    }
+    let rec = a.read.open(&a.recording, a.quiet, a.core.sensor.is_none())?;
     let notes_at_open = rec.notes();
-    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
+    let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
     let cfg = a.core.config(sensor)?;
     if !a.quiet {
         eprintln!("evcal: {}", a.core.window_line(&cfg));
@@ -67,6 +73,9 @@ pub fn run(a: DetectArgs) -> Result<()> {
             "evcal: {} events, {} windows, {} centres; dropped: {} outside the sensor, {} back in time, {} clusters over capacity; {} events of an unfinished last window left out",
             s.events_read, s.windows, s.centres, s.out_of_sensor, s.time_backwards, s.dropped_clusters, s.events_in_last_partial_window
         );
+    }
+    if let Some(w) = outside_warning(s.out_of_sensor, s.events_read, sensor) {
+        eprintln!("evcal: warning: {}: {w}", rec.name().display());
     }
     Ok(())
 }

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// The recording (any format evcal reads; see the README's table).
+    /// The recording (any format evcal reads; see the README's table); `-` for standard input.
     pub recording: PathBuf,
     #[command(flatten)]
     pub read: ReadArgs,
@@ -76,6 +76,8 @@ struct Summary {
     steps_back: u64,
     max_x: u16,
     max_y: u16,
+    /// Events outside the sensor the file states.
+    outside: u64,
     hist: Option<RateHistogram>,
 }
 
@@ -83,7 +85,18 @@ pub fn run(a: InfoArgs) -> Result<()> {
     // The reader's notes are printed with the summary, not when opening.
     let mut rec = Recording::open_with(&a.recording, &a.read.options())?;
     let pb = progress_bar(rec.file_bytes, a.quiet || a.json, "reading");
-    let mut s = Summary { events: 0, on: 0, t_first: None, t_last: 0, steps_back: 0, max_x: 0, max_y: 0, hist: None };
+    let mut s = Summary {
+        events: 0,
+        on: 0,
+        t_first: None,
+        t_last: 0,
+        steps_back: 0,
+        max_x: 0,
+        max_y: 0,
+        outside: 0,
+        hist: None,
+    };
+    let stated = rec.sensor;
     let mut error: Option<ReadError> = None;
     while let Some(e) = rec.next() {
         let e = match e {
@@ -104,6 +117,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
         s.on += u64::from(e.polarity);
         s.max_x = s.max_x.max(e.x);
         s.max_y = s.max_y.max(e.y);
+        s.outside += u64::from(stated.is_some_and(|z| e.x >= z.width || e.y >= z.height));
         if let Some(h) = &mut s.hist {
             h.add(e.t_us);
         }
@@ -119,9 +133,9 @@ pub fn run(a: InfoArgs) -> Result<()> {
     };
     let notes = rec.notes();
     let printed = if a.json {
-        outln!("{}", json(&a, &rec, &s, sensor, sensor_from, &notes, error.as_ref()))
+        outln!("{}", json(&rec, &s, sensor, sensor_from, &notes, error.as_ref()))
     } else {
-        print_table(&a, &rec, &s, sensor, sensor_from, &notes)
+        print_table(&rec, &s, sensor, sensor_from, &notes)
     };
     // A damaged file is said even when standard output has closed.
     match error {
@@ -135,7 +149,6 @@ fn outside(s: &Summary, sensor: Option<SensorSize>) -> bool {
 }
 
 fn json(
-    a: &InfoArgs,
     rec: &Recording,
     s: &Summary,
     sensor: Option<SensorSize>,
@@ -149,7 +162,7 @@ fn json(
         _ => Vec::new(),
     };
     serde_json::json!({
-        "file": a.recording.display().to_string(),
+        "file": rec.name().display().to_string(),
         "format": rec.format.name(),
         "width": sensor.map(|z| z.width),
         "height": sensor.map(|z| z.height),
@@ -165,6 +178,7 @@ fn json(
         "max_x": (s.events > 0).then_some(s.max_x),
         "max_y": (s.events > 0).then_some(s.max_y),
         "outside_sensor": outside(s, sensor),
+        "events_outside_sensor": s.outside,
         "time_steps_back": s.steps_back,
         "notes": notes,
         "error": error.map(|e| e.to_string()),
@@ -197,15 +211,8 @@ fn seconds(us: u64) -> String {
     format!("{}.{:06} s", us / 1_000_000, us % 1_000_000)
 }
 
-fn print_table(
-    a: &InfoArgs,
-    rec: &Recording,
-    s: &Summary,
-    sensor: Option<SensorSize>,
-    from: &str,
-    notes: &[String],
-) -> Result<()> {
-    outln!("file       {}", a.recording.display())?;
+fn print_table(rec: &Recording, s: &Summary, sensor: Option<SensorSize>, from: &str, notes: &[String]) -> Result<()> {
+    outln!("file       {}", rec.name().display())?;
     outln!("format     {}", rec.format.name())?;
     match sensor {
         Some(z) if from == "file" => outln!("sensor     {}x{}", z.width, z.height)?,
@@ -241,8 +248,10 @@ fn print_table(
         100.0 - on_pct
     )?;
     outln!("pixels     x 0..={}, y 0..={}", s.max_x, s.max_y)?;
-    if outside(s, sensor) {
-        outln!("warning    events lie outside the sensor: the detector will drop them")?;
+    if let Some(w) = sensor.and_then(|z| crate::common::outside_warning(s.outside, s.events, z)) {
+        outln!("warning    {w}")?;
+    } else if outside(s, sensor) {
+        outln!("warning    {} events lie outside the sensor: the detector will drop them", thousands(s.outside))?;
     }
     if s.steps_back > 0 {
         outln!("order      {} events earlier than the one before (the detector drops them)", thousands(s.steps_back))?;

@@ -1,7 +1,7 @@
 //! `evcal replay`: stream a recording into a device and collect its detections.
 
 use crate::common::{
-    output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs, LinkArgs, ReadArgs,
+    check_writable, output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs, LinkArgs, ReadArgs,
 };
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -41,8 +41,11 @@ pub struct ReplayArgs {
 }
 
 pub fn run(a: ReplayArgs) -> Result<()> {
-    let rec = a.read.open(&a.recording, a.quiet)?;
-    let sensor = resolve_sensor(a.core.sensor.as_deref(), &a.recording, &rec, &a.read.options(), a.quiet)?;
+    if let Some(o) = &a.out {
+        check_writable(o, "--out")?;
+    }
+    let rec = a.read.open(&a.recording, a.quiet, a.core.sensor.is_none())?;
+    let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
     let cfg = a.core.config(sensor)?;
     if !(a.hello_timeout.is_finite() && a.hello_timeout >= 0.0) {
         bail!("--hello-timeout must be a non-negative number of seconds");
@@ -132,15 +135,24 @@ fn summary(r: &ReplayReport) {
         r.events_sent,
         if r.events_skipped > 0 { "; --all-events sends them" } else { "" }
     );
+    // Per event and per window only when there were some: 38 bytes of configuration over
+    // no event is not a rate.
+    let per = |bytes: u64, n: u64, what: &str, digits: usize| {
+        if n == 0 {
+            format!("{bytes} bytes, no {what}")
+        } else {
+            format!("{:.digits$} bytes/{what}", bytes as f64 / n as f64)
+        }
+    };
     eprintln!(
-        "evcal: {} events in {} batches ({:.2} bytes/event, {} frames sent again); {} windows, {} centres received ({:.0} bytes/window); {} windows lost, {} damaged frames{}",
+        "evcal: {} events in {} batches ({}, {} frames sent again); {} windows, {} centres received ({}); {} windows lost, {} damaged frames{}",
         r.events_sent,
         r.batches,
-        r.bytes_sent as f64 / r.events_sent.max(1) as f64,
+        per(r.bytes_sent, r.events_sent, "event", 2),
         r.retransmitted,
         r.windows,
         r.centres,
-        r.bytes_received as f64 / r.windows.max(1) as f64,
+        per(r.bytes_received, r.windows, "window", 0),
         r.windows_lost,
         r.frames_bad,
         if r.interrupted { "; interrupted" } else { "" }

@@ -4,11 +4,13 @@
 //! u32 with x in bits 0..14, y in bits 14..28 and the polarity in bit 28.
 
 use super::{Header, Position, ReadError};
-use crate::recording::EventSource;
+use crate::recording::{
+    input::{read_up_to, Input},
+    EventSource,
+};
 use evcal_core::event::{Event, SensorSize, TimeUnwrapper};
 use std::{
-    fs::File,
-    io::{Read, Seek, SeekFrom},
+    io::Read,
     path::{Path, PathBuf},
 };
 
@@ -20,17 +22,21 @@ const BATCH: usize = 1 << 15;
 /// Streaming reader of Prophesee CD-event `.dat` files.
 pub struct DatReader {
     path: PathBuf,
-    file: File,
+    file: Box<dyn Read>,
     sensor: Option<SensorSize>,
     /// Offset of the first record.
     data_at: u64,
-    records: u64,
+    /// Whole records in the file, when its size is known.
+    records: Option<u64>,
     next: u64,
-    trailing: u64,
     buf: Vec<u8>,
     buf_at: usize,
     buf_len: usize,
+    eof: bool,
     unwrap: TimeUnwrapper,
+    last_t: Option<u32>,
+    /// Where the input ended inside a record, and how many of its bytes it held.
+    cut: Option<(u64, usize)>,
     done: bool,
 }
 
@@ -48,23 +54,37 @@ fn type_name(t: u8) -> &'static str {
 impl DatReader {
     /// Opens `path`, reads the header and checks that it holds 8-byte CD records.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
-        let (header, head) = Header::read(path)?;
-        let file_bytes = std::fs::metadata(path).map_err(|e| ReadError::io(path, e))?.len();
-        let at = |o: u64, m: String| ReadError::new(path, Position::Byte(o), m);
-        // Prophesee's tools write the type and size bytes after a header; a file without a
-        // header is 8-byte 2D events from the first byte.
-        let (ev_type, ev_size, data_at) = if header.fields.is_empty() {
-            (0, RECORD as u8, 0)
-        } else {
-            match head.get(header.len as usize..header.len as usize + 2) {
-                Some(&[t, s]) => (t, s, header.len + 2),
-                _ => {
-                    return Err(at(
-                        header.len,
-                        "the file ends after its header: no event type and size bytes (an empty or truncated .dat)"
-                            .into(),
-                    ))
-                }
+        Self::from_input(Input::open(path)?)
+    }
+
+    /// Reads the header from `input`'s first bytes and checks that CD records follow.
+    pub(crate) fn from_input(mut input: Input) -> Result<Self, ReadError> {
+        let path = input.name.clone();
+        super::peek_header(&mut input)?;
+        let head = &input.head;
+        let header = Header::parse(head);
+        let at = |o: u64, m: String| ReadError::new(&path, Position::Byte(o), m);
+        // Prophesee's tools always write a header: without one, nothing tells a .dat from any
+        // other bytes (random data reads as plausible events), so it is refused.
+        // An empty file holds nothing to misread: no events.
+        if header.fields.is_empty() && !head.is_empty() {
+            let what = format!("it starts \"{}\"", crate::recording::input::quote(head, 16));
+            return Err(at(
+                0,
+                format!(
+                    "not a Prophesee .dat file: no '% ' header lines (Prophesee's tools write '% Version 2', \
+                     '% Width', '% Height' first), but {what}"
+                ),
+            ));
+        }
+        let (ev_type, ev_size, data_at) = match head.get(header.len as usize..header.len as usize + 2) {
+            _ if head.is_empty() => (12, RECORD as u8, 0),
+            Some(&[t, s]) => (t, s, header.len + 2),
+            _ => {
+                return Err(at(
+                    header.len,
+                    "the file ends after its header: no event type and size bytes (an empty or truncated .dat)".into(),
+                ))
             }
         };
         if !matches!(ev_type, 0 | 12) || usize::from(ev_size) != RECORD {
@@ -81,21 +101,24 @@ impl DatReader {
                 return Err(at(0, format!("'% Version {v}': evcal reads .dat versions 1 and 2")));
             }
         }
-        let body = file_bytes.saturating_sub(data_at);
-        let mut file = File::open(path).map_err(|e| ReadError::io(path, e))?;
-        file.seek(SeekFrom::Start(data_at)).map_err(|e| ReadError::io(path, e))?;
+        let records = input.len.map(|l| l.saturating_sub(data_at) / RECORD as u64);
+        let sensor = header.sensor().map(|(s, _)| s);
+        let mut file = input.into_reader();
+        file.skip_head(data_at as usize);
         Ok(Self {
-            path: path.to_path_buf(),
-            file,
-            sensor: header.sensor().map(|(s, _)| s),
+            path,
+            file: Box::new(file),
+            sensor,
             data_at,
-            records: body / RECORD as u64,
+            records,
             next: 0,
-            trailing: body % RECORD as u64,
             buf: vec![0; BATCH * RECORD],
             buf_at: 0,
             buf_len: 0,
+            eof: false,
             unwrap: TimeUnwrapper::new(),
+            last_t: None,
+            cut: None,
             done: false,
         })
     }
@@ -105,28 +128,68 @@ impl DatReader {
         self.sensor
     }
 
-    /// Number of events (whole records) in the file.
-    pub fn len(&self) -> u64 {
+    /// Number of events (whole records) in the file, when its size is known (not a stream).
+    pub fn len(&self) -> Option<u64> {
         self.records
     }
 
-    /// Whether the file holds no events.
+    /// Whether the file holds no events (as far as its size tells).
     pub fn is_empty(&self) -> bool {
-        self.records == 0
+        self.records == Some(0)
     }
 
-    fn fill(&mut self) -> Result<(), ReadError> {
-        let want = ((self.records - self.next) as usize).min(BATCH) * RECORD;
-        let offset = self.data_at + self.next * RECORD as u64;
-        self.file.read_exact(&mut self.buf[..want]).map_err(|e| {
+    fn offset(&self) -> u64 {
+        self.data_at + self.next * RECORD as u64
+    }
+
+    /// Reads the next batch; `Ok(false)` at the end.
+    fn fill(&mut self) -> Result<bool, ReadError> {
+        let offset = self.offset();
+        let n = read_up_to(&mut self.file, &mut self.buf).map_err(|e| {
             ReadError::new(
                 &self.path,
                 Position::Byte(offset),
                 format!("cannot read events: {e} (was the file cut while reading?)"),
             )
         })?;
-        self.buf_at = 0;
-        self.buf_len = want;
+        self.eof = n < self.buf.len();
+        let whole = n - n % RECORD;
+        if n % RECORD != 0 {
+            let offset = offset + whole as u64;
+            // The whole records before the cut are returned first.
+            self.buf_len = whole;
+            self.buf_at = 0;
+            self.cut = Some((offset, n % RECORD));
+        } else {
+            self.buf_len = n;
+            self.buf_at = 0;
+        }
+        Ok(whole > 0)
+    }
+
+    /// Checks a record against the header and the records before it: a file that is not
+    /// a CD recording fails here rather than giving plausible garbage.
+    fn check(&mut self, t: u32, d: u32) -> Result<(), String> {
+        if d >> 29 != 0 {
+            return Err(format!("bad CD record: bits 29..32 are {:#x}, not zero (a polarity is one bit)", d >> 29));
+        }
+        let (x, y) = (d & 0x3FFF, (d >> 14) & 0x3FFF);
+        if let Some(s) = self.sensor {
+            if x >= u32::from(s.width) || y >= u32::from(s.height) {
+                return Err(format!(
+                    "event at x {x}, y {y} outside the {}x{} sensor of the header: corrupt data?",
+                    s.width, s.height
+                ));
+            }
+        }
+        if let Some(last) = self.last_t {
+            // A step back of more than half the clock is its 32-bit wrap; a smaller one is
+            // out of order, which Prophesee's tools never write.
+            if t < last && last - t <= u32::MAX / 2 {
+                return Err(format!("time goes back from {last} to {t} µs: corrupt data, or not a CD recording"));
+            }
+        }
+        self.last_t = Some(t);
         Ok(())
     }
 }
@@ -137,29 +200,36 @@ impl EventSource for DatReader {
             return None;
         }
         if self.buf_at >= self.buf_len {
-            if self.next >= self.records {
-                self.done = true;
-                if self.trailing > 0 {
-                    let offset = self.data_at + self.records * RECORD as u64;
-                    return Some(Err(ReadError::new(
-                        &self.path,
-                        Position::Byte(offset),
-                        format!(
-                            "the file ends inside an event record ({} of {RECORD} bytes): truncated? the {} whole events before it were read",
-                            self.trailing, self.records
-                        ),
-                    )));
+            let more = if self.eof { Ok(false) } else { self.fill() };
+            match more {
+                Ok(true) => {}
+                Ok(false) => {
+                    self.done = true;
+                    if let Some((offset, n)) = self.cut.take() {
+                        return Some(Err(ReadError::new(
+                            &self.path,
+                            Position::Byte(offset),
+                            format!(
+                                "the file ends inside an event record ({n} of {RECORD} bytes): truncated? the {} whole events before it were read",
+                                self.next
+                            ),
+                        )));
+                    }
+                    return None;
                 }
-                return None;
-            }
-            if let Err(e) = self.fill() {
-                self.done = true;
-                return Some(Err(e));
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
             }
         }
         let r = &self.buf[self.buf_at..self.buf_at + RECORD];
         let t = u32::from_le_bytes([r[0], r[1], r[2], r[3]]);
         let d = u32::from_le_bytes([r[4], r[5], r[6], r[7]]);
+        if let Err(m) = self.check(t, d) {
+            self.done = true;
+            return Some(Err(ReadError::new(&self.path, Position::Byte(self.offset()), m)));
+        }
         self.buf_at += RECORD;
         self.next += 1;
         Some(Ok(Event {
@@ -171,6 +241,6 @@ impl EventSource for DatReader {
     }
 
     fn progress_bytes(&self) -> u64 {
-        self.data_at + self.next * RECORD as u64
+        self.offset()
     }
 }

@@ -27,10 +27,10 @@ use evcal_core::{
     event::SensorSize,
     evt::{Encoding, Evt21Order},
 };
-use std::{io::Read, path::Path};
+use std::path::Path;
 
 /// The most header bytes read; a longer `%` header is not a Prophesee header.
-const MAX_HEADER: usize = 1 << 20;
+pub(crate) const MAX_HEADER: usize = 1 << 20;
 
 /// A parsed `%` header.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -65,14 +65,6 @@ impl Header {
         }
         h.len = at as u64;
         h
-    }
-
-    /// Reads and parses the header of `path` (at most [`MAX_HEADER`] bytes of it).
-    pub fn read(path: &Path) -> Result<(Header, Vec<u8>), ReadError> {
-        let f = std::fs::File::open(path).map_err(|e| ReadError::io(path, e))?;
-        let mut head = Vec::new();
-        f.take(MAX_HEADER as u64).read_to_end(&mut head).map_err(|e| ReadError::io(path, e))?;
-        Ok((Header::parse(&head), head))
     }
 
     /// The last value of `key` (case-insensitive), if any.
@@ -173,10 +165,25 @@ pub fn sniff_evt21_order(body: &[u8]) -> Option<Evt21Order> {
     }
 }
 
-/// Recognises a Prophesee file by its header, else by its extension: `Ok(None)` if it is not
-/// one.
-pub(super) fn sniff(path: &Path, ext: Option<&str>) -> Result<Option<Format>, ReadError> {
-    let (h, head) = Header::read(path)?;
+/// Peeks at `input` until its `%` header has ended (with some bytes of data after it, for
+/// [`sniff_evt21_order`]), the input has ended, or [`MAX_HEADER`] bytes: a live stream is not
+/// held up for a megabyte, a short file costs its size.
+pub(crate) fn peek_header(input: &mut crate::recording::input::Input) -> Result<(), ReadError> {
+    let mut want = 1 << 16;
+    loop {
+        let got = input.peek(want)?.len();
+        let header = Header::parse(&input.head).len as usize;
+        if got < want || header + (1 << 16) <= got || want >= MAX_HEADER {
+            return Ok(());
+        }
+        want = (want * 4).min(MAX_HEADER);
+    }
+}
+
+/// Recognises a Prophesee file by its header (`head`: its first bytes, up to
+/// [`MAX_HEADER`]), else by its extension: `Ok(None)` if it is not one.
+pub(super) fn sniff(path: &Path, head: &[u8], ext: Option<&str>) -> Result<Option<Format>, ReadError> {
+    let h = Header::parse(head);
     let body = &head[(h.len as usize).min(head.len())..];
     let enc = h.encoding().map_err(|m| ReadError::new(path, Position::File, m))?;
     if let Some((enc, explicit)) = enc {

@@ -2,14 +2,13 @@
 //! by `evcal_core::evt` (constant memory whatever the file's size).
 
 use super::{Header, Position, ReadError};
-use crate::recording::EventSource;
+use crate::recording::{input::Input, EventSource};
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Decoder, Encoding, Evt21Order},
 };
 use std::{
-    fs::File,
-    io::{Read, Seek, SeekFrom},
+    io::Read,
     path::{Path, PathBuf},
 };
 
@@ -21,7 +20,7 @@ const EVENT_BATCH: usize = 1 << 13;
 /// Streaming reader of Prophesee RAW files.
 pub struct RawReader {
     path: PathBuf,
-    file: File,
+    file: Box<dyn Read>,
     header: Header,
     sensor: Option<SensorSize>,
     sensor_from: Option<String>,
@@ -40,16 +39,23 @@ impl RawReader {
     /// Opens `path`, reads its header, and decodes its stream as `encoding` (which
     /// `Format::detect` settled from the header and, for EVT 2.1, the stream).
     pub fn open(path: &Path, encoding: Encoding) -> Result<Self, ReadError> {
-        let (header, _) = Header::read(path)?;
+        Self::from_input(Input::open(path)?, encoding)
+    }
+
+    /// Reads the header from `input`'s first bytes, then decodes the rest as `encoding`.
+    pub(crate) fn from_input(mut input: Input, encoding: Encoding) -> Result<Self, ReadError> {
+        super::peek_header(&mut input)?;
+        let header = Header::parse(&input.head);
         let (sensor, sensor_from) = match header.sensor() {
             Some((s, from)) => (Some(s), from),
             None => (None, None),
         };
-        let mut file = File::open(path).map_err(|e| ReadError::io(path, e))?;
-        file.seek(SeekFrom::Start(header.len)).map_err(|e| ReadError::io(path, e))?;
+        let path = input.name.clone();
+        let mut file = input.into_reader();
+        file.skip_head(header.len as usize);
         Ok(Self {
-            path: path.to_path_buf(),
-            file,
+            path,
+            file: Box::new(file),
             header,
             sensor,
             sensor_from,
