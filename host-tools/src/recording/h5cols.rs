@@ -457,7 +457,8 @@ fn guess_from(head: &[i64], last: i64) -> (TimeUnit, String) {
             format!("the times span {span} ticks: more than a day in µs, {:.0} s in ns", span as f64 * 1e-9),
         );
     }
-    let head_span = head.iter().max().unwrap_or(&first) - head.iter().min().unwrap_or(&first);
+    // Saturating: a damaged column can hold both i64 extremes (found by read_h5).
+    let head_span = head.iter().max().unwrap_or(&first).saturating_sub(*head.iter().min().unwrap_or(&first));
     if head_span >= 1000 && head.iter().all(|v| v % 1000 == 0) {
         return (
             TimeUnit::Nanoseconds,
@@ -499,6 +500,7 @@ mod test {
         assert_eq!(guess_from(&[1_600_000_000_000_000_123], 0).0, TimeUnit::Nanoseconds);
         assert_eq!(guess_from(&[1_600_000_000_000_123], 1_600_000_000_000_124).0, TimeUnit::Microseconds);
         assert_eq!(guess_from(&[7], 7).0, TimeUnit::Microseconds, "one event");
+        assert_eq!(guess_from(&[i64::MIN, i64::MAX], i64::MIN).0, TimeUnit::Microseconds, "extremes: no overflow");
     }
 
     fn write(path: &Path, group: bool, t: &[i64], p: &[i8], extra: impl FnOnce(&hdf5::Group)) {
