@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Checks a firmware image against the memory budget (docs: README, Firmware performance):
+# Checks a firmware image against the memory budget (docs/firmware.md, Budgets held in CI):
 # flash (.text + .rodata + .data, what the image puts in flash) at most 512 KiB, static RAM
 # (.data + .bss) at most 64 KiB, so that the stack keeps the rest of a 128 KiB part. The
 # linker enforces only the 512 KiB / 128 KiB regions (memory.x, firmware/boards/*.x);

@@ -17,8 +17,8 @@
 //! the edge's own events; a plain standard deviation grows with every outlier and stops
 //! rejecting them. The kernel is [`KERNEL_WIDTH`] times that inlier spread.
 //!
-//! Everything is `f32` with `libm` and one hand-made exponential, in a fixed order, so the
-//! host and the Cortex-M4F compute the same bits.
+//! Everything is `f32` with the `math` module's square roots and exponential (no `libm`), in
+//! a fixed order, so the host and the Cortex-M4F compute the same bits.
 
 use crate::{
     arc::{solve_spd, Circle, Moments},

@@ -30,8 +30,10 @@
 //!   provided by the caller. Every capacity limit is a named constant in [`config`] or a
 //!   const generic; overflow is counted in statistics, never fatal.
 //! * No panics on any input: malformed events are counted and dropped.
-//! * Floating point is `f32` through `libm`, so results are bit-identical on the host and
-//!   on the Cortex-M4F's single-precision FPU.
+//! * Floating point is `f32` in a fixed order, so results are bit-identical on the host and
+//!   on the Cortex-M4F's single-precision FPU. The hot loops use the `math` module's
+//!   plain-arithmetic functions, not `libm` (which remains outside them: the wire's rounding,
+//!   the clustering's integer square root).
 //!
 //! ## Features
 //!

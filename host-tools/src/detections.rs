@@ -42,7 +42,7 @@ pub const EVENTS_PER_WINDOW_STEP: usize = 500;
 /// duration instead, with the motion blur it brings). The square root of the pixel count
 /// is that size for any aspect ratio (on a 16:9 sensor it is 4/3 of the height: the width
 /// of the 4:3 view a board is framed in). Measured on simulated 4x11 cones in good light
-/// (`tests/examples/window_sizes.rs`): see the README.
+/// (`tests/examples/window_sizes.rs`): see docs/accuracy.md, "Windows sized to the sensor".
 pub fn default_events_per_window(sensor: SensorSize) -> usize {
     let pixels = f64::from(sensor.width) * f64::from(sensor.height);
     let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);

@@ -25,7 +25,7 @@ pub const PROFILE: &str = "firmware";
 /// Most instructions one window (4000 events) may take on the emulated board (QEMU
 /// `mps2-an386`, a Cortex-M4F), between the benchmark markers: 33 ms, a window's share of
 /// real time at 30 windows a second, at 168 MHz (the STM32F405's clock) and 1.25 cycles per
-/// instruction is 4.435 M; the README's target rounds it down.
+/// instruction is 4.435 M; docs/firmware.md's target rounds it down.
 pub const M4F_INSTRUCTIONS_PER_WINDOW: u64 = 4_400_000;
 
 /// The instruction-counting QEMU plugin (`firmware/tools/insn_count.c`), built with `gcc`

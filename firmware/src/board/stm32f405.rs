@@ -3,7 +3,7 @@
 //!
 //! Raw registers keep this free of a HAL dependency; a HAL's UART (anything implementing
 //! `embedded-io`) can replace [`Usart`] as well. Flash with `probe-rs run --chip STM32F405RGTx`
-//! (see README). No board is here to test it: it is built in CI, not run.
+//! (see docs/firmware.md). No board is here to test it: it is built in CI, not run.
 //!
 //! The receiver is polled: the protocol's flow control (the host sends an event batch only
 //! when the device has asked for one and is waiting for it) keeps bytes from arriving while

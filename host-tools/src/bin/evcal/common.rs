@@ -75,10 +75,10 @@ pub struct CoreArgs {
     /// sensor fires more events a second (the board's outlines span more pixels and cross
     /// more of them), so a window of a fixed number of events is shorter and each circle's
     /// events sparser along its outline: on a simulated 640x480 sweep the finder labels the
-    /// grid by itself in 88 % of the windows of 4000 events, 96 % of 7500 (README: Windows
-    /// sized to the sensor). The value chosen is printed on standard error. Up to 32000 on
-    /// the host; `evcal replay` asks a device for at most what it holds (the firmware:
-    /// 4000), unless given this option.
+    /// grid by itself in 88 % of the windows of 4000 events, 96 % of 7500 (docs/accuracy.md:
+    /// Windows sized to the sensor). The value chosen is printed on standard error. Up to
+    /// 32000 on the host; `evcal replay` asks a device for at most what it holds (the
+    /// firmware: 4000), unless given this option.
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
     pub events_per_window: Option<u32>,
