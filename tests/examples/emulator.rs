@@ -126,6 +126,40 @@ fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<(
     Some((centre, [cx / (3.0 * area), cy / (3.0 * area)]))
 }
 
+/// The centre a circle fit finds on the outline of board point `o` at `t` when only the
+/// edges moving across themselves give events: the outline's points weighted by arc length
+/// times |motion · normal| (`u`, a unit image direction), fitted by a weighted algebraic
+/// circle fit.
+fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: [f64; 2]) -> Option<[f64; 2]> {
+    let (rv, tv) = truth.pose_at(t);
+    let rot = Rotation3::new(Vector3::from(rv));
+    let tv = Vector3::from(tv);
+    let cam = |x: f64, y: f64| rot * Vector3::new(x, y, 0.0) + tv;
+    let r = truth.pattern.radius_m;
+    let n = 256;
+    let mut pts = Vec::with_capacity(n);
+    for j in 0..n {
+        let a = std::f64::consts::TAU * j as f64 / n as f64;
+        pts.push(k.project(&cam(o[0] + r * a.cos(), o[1] + r * a.sin()))?);
+    }
+    let c0 = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+    // Weighted Kasa fit: x² + y² + D x + E y + F = 0, in coordinates about c0.
+    let mut m = nalgebra::Matrix3::<f64>::zeros();
+    let mut b = nalgebra::Vector3::<f64>::zeros();
+    for j in 0..n {
+        let (p, q) = (pts[(j + n - 1) % n], pts[(j + 1) % n]);
+        let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
+        let ds = tx.hypot(ty) * 0.5;
+        let w = ds * ((u[0] * ty - u[1] * tx).abs() / (2.0 * ds).max(1e-12));
+        let (x, y) = (pts[j][0] - c0[0], pts[j][1] - c0[1]);
+        let row = nalgebra::Vector3::new(x, y, 1.0);
+        m += w * row * row.transpose();
+        b += w * row * (-(x * x + y * y));
+    }
+    let s = m.lu().solve(&b)?;
+    Some([c0[0] - 0.5 * s[0], c0[1] - 0.5 * s[1]])
+}
+
 fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize) -> Vec<WindowRecord> {
     let file = cache.map(|c| c.join(format!("{name}.jsonl")));
     if let Some(w) = file.as_ref().and_then(|f| std::fs::File::open(f).ok()) {
@@ -255,6 +289,9 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     // Per point of `delayed`: the unit direction of its circle's motion and its residual.
     let mut motion: Vec<([f64; 2], [f64; 2])> = Vec::new();
     let mut delays = Vec::new();
+    let mut fitted = Vec::new();
+    let mut feats: Vec<[f64; 9]> = Vec::new();
+    let mut fit_gap: Vec<([f64; 2], [f64; 2], [f64; 2])> = Vec::new();
     for r in &out.calibration.views {
         let v = &out.used[r.view];
         let t = t_of(out.used_origins[r.view].window_seq);
@@ -278,7 +315,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         }
         let d = 0.5 * (lo + hi);
         delays.push(d);
-        let (mut e0, mut e1, mut e2) = (View::default(), View::default(), View::default());
+        let (mut e0, mut e1, mut e2, mut e3) = (View::default(), View::default(), View::default(), View::default());
         for (o, m) in v.object.iter().zip(&v.image) {
             let (Some((c, _)), Some(e), Some(later)) =
                 (true_centres(truth, k, o, t), outline(o, d), outline(o, d - 1e-3))
@@ -288,12 +325,41 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             let (vx, vy) = (later[0] - e[0], later[1] - e[1]);
             let n = vx.hypot(vy).max(1e-12);
             motion.push(([vx / n, vy / n], [m[0] - e[0], m[1] - e[1]]));
+            let f = fitted_outline_centre(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(e);
+            if let Some(earlier) = outline(o, d + 1e-3) {
+                // Image velocity (px/s) and acceleration (px/s²) of the outline centre.
+                let vel = [(later[0] - earlier[0]) / 2e-3, (later[1] - earlier[1]) / 2e-3];
+                let acc = [(later[0] - 2.0 * e[0] + earlier[0]) / 1e-6, (later[1] - 2.0 * e[1] + earlier[1]) / 1e-6];
+                let (ux, uy) = (vx / n, vy / n);
+                let res_c = -(m[0] - e[0]) * uy + (m[1] - e[1]) * ux;
+                let res_a = (m[0] - e[0]) * ux + (m[1] - e[1]) * uy;
+                let acc_c = -acc[0] * uy + acc[1] * ux;
+                let rho_c = -(e[0] - k.cx) * uy + (e[1] - k.cy) * ux;
+                let rho_a = (e[0] - k.cx) * ux + (e[1] - k.cy) * uy;
+                let sp = vel[0].hypot(vel[1]);
+                let rr = ((e[0] - k.cx).powi(2) + (e[1] - k.cy).powi(2)) / 1e4;
+                feats.push([
+                    res_c,
+                    res_a,
+                    acc_c,
+                    rho_c,
+                    rho_a,
+                    sp,
+                    sp * (e[0] - k.cx) / 100.0,
+                    sp * (e[1] - k.cy) / 100.0,
+                    sp * rr,
+                ]);
+            }
+            fit_gap.push(([vx / n, vy / n], [f[0] - e[0], f[1] - e[1]], [m[0] - e[0], m[1] - e[1]]));
+            e3.object.push(*o);
+            e3.image.push(f);
             for (view, p) in [(&mut e0, c), (&mut e1, e), (&mut e2, *m)] {
                 view.object.push(*o);
                 view.image.push(p);
             }
         }
         exact.push(e0);
+        fitted.push(e3);
         delayed.push(e1);
         detected.push(e2);
     }
@@ -307,6 +373,72 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     show("true outline centres at each view's best delay, solved as centres", &delayed, &centre_only);
     show("true outline centres at each view's best delay, outlines modelled", &delayed, &plain);
     show("detected, outlines modelled", &detected, &plain);
+    {
+        // Least squares: residual = a + b·x + c·y over the features.
+        let ls = |yi: usize, xs: &[usize]| {
+            let m = xs.len() + 1;
+            let mut a = nalgebra::DMatrix::<f64>::zeros(m, m);
+            let mut b = nalgebra::DVector::<f64>::zeros(m);
+            for f in &feats {
+                let mut row = vec![1.0];
+                row.extend(xs.iter().map(|&i| f[i]));
+                for i in 0..m {
+                    b[i] += row[i] * f[yi];
+                    for j in 0..m {
+                        a[(i, j)] += row[i] * row[j];
+                    }
+                }
+            }
+            a.lu().solve(&b).map(|s| s.iter().copied().collect::<Vec<_>>()).unwrap_or_default()
+        };
+        let speeds: Vec<f64> = feats.iter().map(|f| f[5]).collect();
+        let mut sp = speeds.clone();
+        sp.sort_by(f64::total_cmp);
+        println!("    speed px/s: median {:.1}, 90 % {:.1}", sp[sp.len() / 2], sp[sp.len() * 9 / 10]);
+        // A centre error that grows with the distance from the principal point reads as a
+        // focal-length error; one that grows with the image speed, as a delay that differs
+        // between circles; one with the acceleration across the motion, as the curvature of
+        // the path within a window.
+        let g = ls(1, &[5, 6, 7, 8]);
+        if let [g0, g1, g2, g3, g4] = g.as_slice() {
+            println!(
+                "    along residual = {g0:+.4} px + speed · ({:+.2} ms {:+.2} ms/100 px · x {:+.2} ms/100 px · y {:+.2} ms/(100 px)² · ρ²)",
+                1e3 * g1, 1e3 * g2, 1e3 * g3, 1e3 * g4
+            );
+        }
+        let (a, b) = (ls(0, &[2, 3]), ls(1, &[4, 5]));
+        if let ([a0, a1, a2], [b0, b1, b2]) = (a.as_slice(), b.as_slice()) {
+            println!(
+                "    across residual = {a0:+.4} px {:+.2e} s² · acceleration across {:+.5} · distance from (cx, cy) across",
+                a1, a2
+            );
+            println!(
+                "    along residual = {b0:+.4} px {:+.5} · distance from (cx, cy) along {:+.2} ms · speed",
+                b1,
+                1e3 * b2
+            );
+        }
+    }
+    show("outline circle-fitted across the motion at the best delay, outlines modelled", &fitted, &plain);
+    {
+        // How the fitted-minus-centroid gap compares with the detected residual, across the motion.
+        let (mut sg, mut sr, mut sgg, mut sgr, mut srr) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for ([ux, uy], g, r) in &fit_gap {
+            let gc = -g[0] * uy + g[1] * ux;
+            let rc = -r[0] * uy + r[1] * ux;
+            sg += gc;
+            sr += rc;
+            sgg += gc * gc;
+            sgr += gc * rc;
+            srr += rc * rc;
+        }
+        let n = fit_gap.len().max(1) as f64;
+        let (mg, mr) = (sg / n, sr / n);
+        let cov = sgr / n - mg * mr;
+        let (vg, vr) = (sgg / n - mg * mg, srr / n - mr * mr);
+        println!("    fit gap across the motion: RMS {:.4} px; detected residual across: slope on the gap {:.2}, correlation {:.2}",
+            (sgg / n).sqrt(), cov / vg.max(1e-18), cov / (vg * vr).sqrt().max(1e-18));
+    }
     // How much of the error is the noise of weakly fixed parameters: the halves of the
     // recording solved apart (on a spiral the two differ by far more than the whole errs).
     let half = detected.len() / 2;
