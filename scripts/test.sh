@@ -5,7 +5,11 @@ cd "$(dirname "$0")/.."
 
 bash scripts/setup.sh
 
-step() { echo; echo "=== $*"; }
+# Each step's wall time is printed when the next begins, and all of them at the end: CI's
+# time is a budget (under 30 minutes on 2 cores), kept by knowing where it goes.
+times=()
+step_end() { [ -n "${step_name:-}" ] && times+=("$(printf '%5d s  %s' $((SECONDS - step_t0)) "$step_name")"); return 0; }
+step() { step_end; step_name="$*"; step_t0=$SECONDS; echo; echo "=== $*"; }
 
 step "format"
 cargo fmt --all -- --check
@@ -71,3 +75,5 @@ cargo test -p evcal-tests --test firmware_qemu -- --ignored 2>&1 | tee -a target
 
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
+step_end
+echo; echo "=== wall time per step (total $SECONDS s)"; printf '%s\n' "${times[@]}"
