@@ -15,7 +15,7 @@
 //! every weighted optimum `Σ wξ = 0`, since r is free) and σ comes from the residuals' median
 //! absolute value, which clutter and noise events cannot inflate while they are fewer than
 //! the edge's own events; a plain standard deviation grows with every outlier and stops
-//! rejecting them. The kernel is [`KERNEL_WIDTH`] times that inlier spread.
+//! rejecting them. The kernel is `KERNEL_WIDTH` times that inlier spread.
 //!
 //! Everything is `f32` with the `math` module's square roots and exponential (no `libm`), in
 //! a fixed order, so the host and the Cortex-M4F compute the same bits.
@@ -147,10 +147,10 @@ pub fn fit_with(
 }
 
 /// [`fit_with`] for a caller that needs the fit only if its weighted spread ends within
-/// `give_up` px (less than the default [`MAX_SPREAD`] of 3 px): an eRWLS fit whose spread is
+/// `give_up` px (less than the default `MAX_SPREAD` of 3 px): an eRWLS fit whose spread is
 /// beyond `give_up` from its second pass on ends there with `None`, without its remaining
 /// passes. The spread shrinks only slowly once the kernel follows the residuals' median
-/// (see [`MAX_SPREAD`]), so a fit beyond `give_up` after two passes would end beyond a
+/// (see `MAX_SPREAD`), so a fit beyond `give_up` after two passes would end beyond a
 /// threshold well below it.
 pub fn fit_within(
     parts: &[&[WindowEvent]],

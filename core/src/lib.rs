@@ -48,11 +48,6 @@ pub mod config;
 pub mod detect;
 pub mod event;
 pub mod evt;
-// Its docs link three private tuning constants (`KERNEL_WIDTH`, `MAX_SPREAD`): the links
-// resolve with `--document-private-items` only. Allowed here, not fixed there, while the
-// fit's numerics are reworked on another branch; drop this once those lines link no private
-// item.
-#[allow(rustdoc::private_intra_doc_links)]
 pub mod fit;
 mod math;
 pub mod window;

@@ -9,9 +9,6 @@ pub mod grid;
 pub mod link;
 pub mod motion;
 pub mod pipeline;
-// `prophesee::Header::read`'s doc links the private `MAX_HEADER`; allowed here, not fixed
-// there, while the readers are reworked on another branch: drop this once it links none.
-#[allow(rustdoc::private_intra_doc_links)]
 pub mod recording;
 pub mod select;
 pub mod sim;

@@ -109,7 +109,7 @@ impl Aedat4Reader {
         let mut file = BufReader::with_capacity(1 << 16, f);
 
         let mut magic = [0u8; 18];
-        let got = read_up_to(&mut file, &mut magic).map_err(|e| ReadError::io(path, e))?;
+        let got = super::input::read_up_to(&mut file, &mut magic).map_err(|e| ReadError::io(path, e))?;
         if got < MAGIC.len() || magic[..MAGIC.len()] != MAGIC[..] {
             let start = String::from_utf8_lossy(&magic[..got.min(14)]).trim_end().to_string();
             let what = if got == 0 {
@@ -393,20 +393,6 @@ impl EventSource for Aedat4Reader {
     fn notes(&self) -> Vec<String> {
         self.notes.clone()
     }
-}
-
-/// Reads until `buf` is full or the input ends; the count read.
-fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
-    let mut n = 0;
-    while n < buf.len() {
-        match r.read(&mut buf[n..]) {
-            Ok(0) => break,
-            Ok(k) => n += k,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(n)
 }
 
 /// Decompresses one packet (or the data table) into `out`.
