@@ -513,3 +513,83 @@ fn replay_of_no_events_prints_no_rate() {
     assert_eq!(code, Some(0), "{err}");
     assert!(!err.contains("bytes/event") && err.contains("no event"), "{err}");
 }
+
+#[test]
+fn hdf5_chunks_beyond_the_limit_are_refused_before_reading() {
+    // A chunk is read whole: a corrupt or absurd chunk size would cost that much memory. The
+    // file itself is small (the chunk compresses to almost nothing).
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("huge_chunk.h5");
+    {
+        let f = hdf5::File::create(&p).unwrap();
+        let g = f.create_group("events").unwrap();
+        for name in ["x", "y"] {
+            g.new_dataset_builder().with_data(&[1u16, 2, 3]).create(name).unwrap();
+        }
+        g.new_dataset_builder().with_data(&[1u8, 0, 1]).create("p").unwrap();
+        // 10 M i64 per chunk: 80 MB, beyond the 64 MB limit.
+        let t = g.new_dataset::<i64>().chunk(10_000_000).deflate(1).shape(3..).create("t").unwrap();
+        t.write(&[5i64, 6, 7]).unwrap();
+    }
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("huge_chunk.h5") && err.contains("chunks of 80000000 bytes"), "{err}");
+}
+
+#[test]
+fn a_non_numeric_events_table_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("strings.h5");
+    {
+        let f = hdf5::File::create(&p).unwrap();
+        let rows: Vec<hdf5::types::FixedAscii<8>> =
+            (0..8).map(|i| hdf5::types::FixedAscii::from_ascii(format!("e{i}").as_bytes()).unwrap()).collect();
+        let a = ndarray::Array2::from_shape_vec((2, 4), rows).unwrap();
+        f.new_dataset_builder().with_data(&a).create("events_data").unwrap();
+    }
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("strings.h5") && err.contains("'events_data' holds") && err.contains("not numbers"), "{err}");
+}
+
+#[test]
+fn calibrate_reads_a_fifo_as_it_reads_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.txt");
+    let (code, _, err) = evcal(&["simulate", "--seed", "5", "--seconds", "2.5", "--quiet", "-o", s(&rec)]);
+    assert_eq!(code, Some(0), "{err}");
+    let calibrate = |input: &Path, out: &str| {
+        let json = dir.path().join(format!("{out}.json"));
+        let (code, _, err) = evcal(&[
+            "calibrate",
+            s(input),
+            "--pattern",
+            "4x11",
+            "--spacing",
+            "0.024",
+            "--out",
+            s(&dir.path().join(out)),
+            "--json",
+            s(&json),
+        ]);
+        let v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).unwrap_or_default()).unwrap_or_default();
+        (code, err, v)
+    };
+    let (code, err, file) = calibrate(&rec, "file");
+    assert_eq!(code, Some(0), "{err}");
+    let fifo = dir.path().join("fifo.txt");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let (src, dst) = (rec.clone(), fifo.clone());
+    let writer = std::thread::spawn(move || {
+        let data = std::fs::read(&src).unwrap();
+        let _ = std::fs::OpenOptions::new().write(true).open(&dst).unwrap().write_all(&data);
+    });
+    let (code, err, piped) = calibrate(&fifo, "fifo");
+    writer.join().unwrap();
+    assert_eq!(code, Some(0), "{err}");
+    for key in ["fx", "fy", "cx", "cy", "k1", "rms_px", "views_used", "windows", "detections"] {
+        assert_eq!(file[key], piped[key], "{key}: file {} vs FIFO {}", file[key], piped[key]);
+        assert!(!file[key].is_null(), "{key} missing: {file}");
+    }
+}
