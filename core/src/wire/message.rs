@@ -12,8 +12,8 @@ use super::{
     codec::{bit_len, bytes_for_bits, BitCursor, BitWriter, Counter, Reader, Sink},
     events::EventBatch,
     fixed::WireCentre,
-    frame::{frame_len_max, FrameWriter},
-    Error, Result, PROTOCOL_VERSION,
+    frame::{emit_frame, frame_len_max},
+    kind, Error, Result, PROTOCOL_VERSION,
 };
 use crate::{
     cluster::ClusterConfig,
@@ -22,17 +22,6 @@ use crate::{
     fit::{FitConfig, FitMethod},
     window::WindowConfig,
 };
-
-/// Message type bytes.
-pub(crate) mod kind {
-    pub const HELLO: u8 = 0x01;
-    pub const DETECTION: u8 = 0x02;
-    pub const STATS: u8 = 0x03;
-    pub const ACK: u8 = 0x04;
-    pub const CONFIG: u8 = 0x81;
-    pub const EVENTS: u8 = 0x82;
-    pub const END: u8 = 0x83;
-}
 
 /// Why the device sent a [`Hello`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -247,13 +236,6 @@ impl<'a> HostMessage<'a> {
         r.finish()?;
         Ok(m)
     }
-}
-
-/// Writes one message as a frame into `out`; its length on the wire.
-pub(crate) fn emit_frame(out: &mut [u8], body: impl FnOnce(&mut FrameWriter<'_>)) -> Result<usize> {
-    let mut w = FrameWriter::new(out);
-    body(&mut w);
-    w.finish()
 }
 
 fn put_config(s: &mut impl Sink, c: &DetectConfig) {

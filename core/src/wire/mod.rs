@@ -87,6 +87,19 @@ pub use message::{
 /// The protocol version this crate speaks, carried in [`Hello`].
 pub const PROTOCOL_VERSION: u8 = 1;
 
+/// Message type bytes, as the table of [messages](self#messages) lists them. Here rather than
+/// beside any one message: every message's emitter writes its own, and the parsers of both
+/// directions read them all.
+pub(crate) mod kind {
+    pub const HELLO: u8 = 0x01;
+    pub const DETECTION: u8 = 0x02;
+    pub const STATS: u8 = 0x03;
+    pub const ACK: u8 = 0x04;
+    pub const CONFIG: u8 = 0x81;
+    pub const EVENTS: u8 = 0x82;
+    pub const END: u8 = 0x83;
+}
+
 /// What went wrong with a frame or a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
