@@ -9,32 +9,16 @@ use core::{
     sync::atomic::{AtomicBool, Ordering},
 };
 use evcal_core::{
-    cluster::ClusterConfig,
-    config::{
-        DEFAULT_EPS, DEFAULT_EVENTS_PER_WINDOW, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS,
-        DEFAULT_STEP_US,
-    },
     detect::DetectConfig,
     event::SensorSize,
-    fit::{FitConfig, FitMethod},
-    window::WindowConfig,
-    wire::{Device, DeviceOptions},
+    wire::{default_config, Device, DeviceOptions},
 };
 #[cfg(not(feature = "board-stm32f405"))]
 use evcal_firmware::runner::FwDetector;
 
 /// The configuration the device boots with, until a host sends its own: the core's
 /// defaults for a DAVIS346.
-const BOOT_CONFIG: DetectConfig = DetectConfig {
-    sensor: SensorSize::DAVIS346,
-    window: WindowConfig { events: DEFAULT_EVENTS_PER_WINDOW, step_us: DEFAULT_STEP_US },
-    cluster: ClusterConfig { eps: DEFAULT_EPS, min_pts: DEFAULT_MIN_PTS, eps_t: None },
-    fit: FitConfig {
-        method: FitMethod::Erwls,
-        max_iterations: DEFAULT_MAX_ITERATIONS,
-        min_events: DEFAULT_MIN_CLUSTER_EVENTS,
-    },
-};
+const BOOT_CONFIG: DetectConfig = default_config(SensorSize::DAVIS346);
 
 /// How the device behaves on the link: credit for two frames (one being fed, one waiting in
 /// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
