@@ -8,7 +8,8 @@
 //! * [`frame`]: framing. `0x00 ‖ COBS(payload ‖ CRC-32C) ‖ 0x00`; why these.
 //! * [`FrameAccumulator`]: reassembles frames from a byte stream in a fixed buffer and
 //!   resynchronises after damage (postcard's `CobsAccumulator` is the model).
-//! * [`DeviceMessage`], [`HostMessage`]: the messages and their layouts.
+//! * [`DeviceMessage`], [`HostMessage`]: the messages and their layouts; a window's centres
+//!   are packed per field ([`emit_detection`], [`DetectionFrame`]).
 //! * [`fixed`]: the fixed-point form of centres (1/1024 px), shared with the host's output.
 //! * [`events`]: compact event batches for replay.
 //! * [`device`]: the device's side of the protocol as a state machine the firmware drives.
@@ -71,18 +72,20 @@ pub mod fixed;
 pub mod frame;
 
 mod codec;
+mod detection;
 mod message;
 #[cfg(test)]
 mod tests;
 
+pub use detection::{
+    detection_frame_max, detection_payload_max, emit_core_detection, emit_detection, Centres, DetectionFrame,
+    DetectionHeader,
+};
 pub use device::{default_config, Device, DeviceOptions};
 pub use events::{emit_events, events_that_fit, BatchEvents, BatchSizer, EventBatch, EventCursor};
 pub use fixed::WireCentre;
 pub use frame::{Feed, FrameAccumulator};
-pub use message::{
-    detection_frame_max, detection_payload_max, emit_core_detection, emit_detection, Ack, Centres, Config,
-    DetectionFrame, DetectionHeader, DeviceMessage, End, Hello, HelloReply, HostMessage, Stats,
-};
+pub use message::{Ack, Config, DeviceMessage, End, Hello, HelloReply, HostMessage, Stats};
 
 /// The protocol version this crate speaks, carried in [`Hello`].
 pub const PROTOCOL_VERSION: u8 = 1;
