@@ -5,7 +5,8 @@
 
 use crate::{
     board::{self, Board, BoardImpl},
-    device::{bench_detector, MarkedClock},
+    markers::MarkedClock,
+    role::bench_detector,
     stack,
 };
 use core::fmt::Write;

@@ -12,117 +12,16 @@
 //!   - `bench FILE [EVENTS [STEP_US]]`: the benchmark replay of `crate::bench`;
 //!   - `fault`, `panic`: for the test that both end QEMU with a failure status.
 
-use crate::board::{self, Board, BoardImpl, SysTickClock};
-use core::{
-    mem::MaybeUninit,
-    ptr::addr_of_mut,
-    sync::atomic::{AtomicBool, Ordering},
+use crate::{
+    board::{self, Board, BoardImpl},
+    markers::MarkedClock,
+    role::{protocol_device, FwDevice},
 };
 use embedded_io::{Read, Write};
-use evcal_core::{
-    cluster::ClusterConfig,
-    config::{
-        DEFAULT_EPS, DEFAULT_EVENTS_PER_WINDOW, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS,
-        DEFAULT_STEP_US,
-    },
-    detect::{Clock, DetectConfig},
-    event::SensorSize,
-    fit::{FitConfig, FitMethod},
-    window::WindowConfig,
-    wire::{Device, DeviceOptions},
-};
-#[cfg(not(feature = "board-stm32f405"))]
-use evcal_firmware::runner::FwDetector;
 use evcal_firmware::{
     runner::READ_BATCH,
     source::{EventSource, SourceError},
 };
-
-/// The board's SysTick clock, calling the `#[no_mangle]` marker functions that the
-/// instruction counter breaks on around each window's clustering and fitting.
-#[derive(Clone, Copy)]
-pub struct MarkedClock(pub SysTickClock);
-
-impl Clock for MarkedClock {
-    fn now(&mut self) -> u32 {
-        self.0.now()
-    }
-    fn window_begins(&mut self) {
-        crate::bench_start();
-    }
-    fn window_ends(&mut self) {
-        crate::bench_stop();
-    }
-}
-
-/// The configuration the device boots with, until a host sends its own: the core's
-/// defaults for a DAVIS346.
-const BOOT_CONFIG: DetectConfig = DetectConfig {
-    sensor: SensorSize::DAVIS346,
-    window: WindowConfig { events: DEFAULT_EVENTS_PER_WINDOW, step_us: DEFAULT_STEP_US },
-    cluster: ClusterConfig { eps: DEFAULT_EPS, min_pts: DEFAULT_MIN_PTS, eps_t: None },
-    fit: FitConfig {
-        method: FitMethod::Erwls,
-        max_iterations: DEFAULT_MAX_ITERATIONS,
-        min_events: DEFAULT_MIN_CLUSTER_EVENTS,
-    },
-};
-
-/// How the device behaves on the link: credit for two frames (one being fed, one waiting in
-/// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
-const OPTIONS: DeviceOptions = DeviceOptions { window: 2, stats_every: 16, clock_hz: board::CLOCK_HZ };
-
-/// The protocol's device with the core's default capacities and buffers.
-pub type FwDevice = Device;
-
-/// What the big static memory holds: one detector's worth (some 43 KB of window buffer and
-/// clusterer), used by whichever mode runs.
-#[allow(clippy::large_enum_variant)] // the variants share one memory on purpose
-enum Role {
-    Protocol(FwDevice),
-    #[cfg(not(feature = "board-stm32f405"))]
-    Bench(FwDetector),
-}
-
-// The images a role starts from, built at compile time. Writing one into the static copies
-// it from flash; building the value at run time would put a temporary of the same size on
-// the stack first (measured: a 37 KB stack peak), RAM the budget would have to hold too.
-const PROTOCOL_IMAGE: Role = Role::Protocol(FwDevice::new(BOOT_CONFIG, OPTIONS));
-#[cfg(not(feature = "board-stm32f405"))]
-const BENCH_IMAGE: Role = Role::Bench(FwDetector::new(BOOT_CONFIG));
-
-static mut ROLE: MaybeUninit<Role> = MaybeUninit::uninit();
-static ROLE_TAKEN: AtomicBool = AtomicBool::new(false);
-
-/// The static memory, once.
-fn role(image: Role) -> Option<&'static mut Role> {
-    if ROLE_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag lets one caller through, once: this is the only reference ever made.
-    let slot = unsafe { &mut *addr_of_mut!(ROLE) };
-    Some(slot.write(image))
-}
-
-/// The detector for the benchmark, configured with `cfg`; `None` if the memory is taken.
-#[cfg(not(feature = "board-stm32f405"))]
-pub fn bench_detector(cfg: DetectConfig) -> Option<&'static mut FwDetector> {
-    match role(BENCH_IMAGE)? {
-        Role::Bench(d) => {
-            d.reconfigure(cfg);
-            Some(d)
-        }
-        Role::Protocol(_) => None,
-    }
-}
-
-fn protocol_device() -> Option<&'static mut FwDevice> {
-    match role(PROTOCOL_IMAGE)? {
-        Role::Protocol(d) => Some(d),
-        #[cfg(not(feature = "board-stm32f405"))]
-        Role::Bench(_) => None,
-    }
-}
 
 /// Runs the firmware; `true` if it ended cleanly (the protocol runs until reset).
 pub fn run(mut board: BoardImpl) -> bool {

@@ -33,6 +33,10 @@ mod board;
 mod device;
 #[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
 mod hostfs;
+#[cfg(target_os = "none")]
+mod markers;
+#[cfg(target_os = "none")]
+mod role;
 #[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
 mod stack;
 
@@ -40,25 +44,6 @@ mod stack;
 use defmt_rtt as _;
 #[cfg(all(target_os = "none", feature = "defmt", not(feature = "board-stm32f405")))]
 use defmt_semihosting as _;
-
-/// Marks the start of one window's processing for an external instruction counter (the
-/// `qemu-insn-count` plugin breaks on this symbol). Its body differs from [`bench_stop`]'s
-/// so that the linker cannot fold the two into one address.
-#[cfg(target_os = "none")]
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_start() {
-    cortex_m::asm::nop();
-}
-
-/// Marks the end of one window's processing (see [`bench_start`]).
-#[cfg(target_os = "none")]
-#[no_mangle]
-#[inline(never)]
-pub extern "C" fn bench_stop() {
-    cortex_m::asm::nop();
-    cortex_m::asm::nop();
-}
 
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]

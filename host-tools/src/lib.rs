@@ -14,3 +14,4 @@ pub mod select;
 pub mod sim;
 pub mod smooth;
 pub mod track;
+pub mod views;

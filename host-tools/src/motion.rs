@@ -22,7 +22,7 @@
 //! final solve then runs on centres moved forward by `δ`.
 
 use crate::calib::{self, board_key, View};
-use crate::export::ViewOrigin;
+use crate::views::ViewOrigin;
 use serde::{Deserialize, Serialize};
 
 /// Neighbouring windows further apart than this do not give a direction of motion: a hand

@@ -7,12 +7,13 @@
 
 use crate::calib::{self, CalibError, Calibration, View};
 use crate::detections::WindowRecord;
-use crate::export::{k3_displacement_px, ViewOrigin, WindowSample, K3_NEGLIGIBLE_PX};
+use crate::export::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 use crate::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
 use crate::motion::{self, EdgeShift};
 use crate::select::{advice, select_views, Coverage, SelectOptions, Selection};
 use crate::smooth::{smoothed, SmoothOptions, SmoothStats};
 use crate::track::{follow, TrackOptions};
+use crate::views::{ViewOrigin, WindowSample};
 use std::collections::BTreeMap;
 use std::fmt;
 

@@ -12,7 +12,7 @@
 //! extrapolation); a point without them keeps its own centre.
 
 use crate::calib::{board_key, View};
-use crate::export::ViewOrigin;
+use crate::views::ViewOrigin;
 
 /// How centres are smoothed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -72,7 +72,7 @@ fn main() {
         let views = views_from_windows(&windows, &setup, &|_| {});
         let views_alone = views_from_windows(&windows, &alone, &|_| {});
         let n_in_view = in_view.iter().filter(|&&b| b).count();
-        let found = |t: &[evcal_host::export::WindowSample]| {
+        let found = |t: &[evcal_host::views::WindowSample]| {
             t.iter().zip(&in_view).filter(|(s, &iv)| iv && s.grid_found).count()
         };
         let (by_itself, with_tracking) = (found(&views_alone.timeline), found(&views.timeline));

@@ -59,8 +59,8 @@
 //! 200 bytes of stack.
 
 use super::{
-    emit_core_detection, message::detection_frame_max, Ack, Config, Feed, FrameAccumulator, Hello, HelloReply,
-    HostMessage, Stats,
+    detection_frame_max, emit_core_detection, Ack, Config, Feed, FrameAccumulator, Hello, HelloReply, HostMessage,
+    Stats,
 };
 use crate::{
     cluster::ClusterConfig,

@@ -19,9 +19,8 @@
 
 use super::{
     codec::{bit_len, bytes_for_bits, varint_len, BitCursor, BitWriter, Reader, Sink},
-    frame::frame_len_max,
-    message::{emit_frame, kind},
-    Error, Result,
+    frame::{emit_frame, frame_len_max},
+    kind, Error, Result,
 };
 use crate::event::Event;
 

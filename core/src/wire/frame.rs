@@ -116,6 +116,14 @@ impl Sink for FrameWriter<'_> {
     }
 }
 
+/// Writes one message as a frame into `out`: `body` puts the payload; the frame's length on
+/// the wire.
+pub(crate) fn emit_frame(out: &mut [u8], body: impl FnOnce(&mut FrameWriter<'_>)) -> Result<usize> {
+    let mut w = FrameWriter::new(out);
+    body(&mut w);
+    w.finish()
+}
+
 /// Decodes the bytes between two delimiters in place and checks the CRC; the payload's
 /// length (the payload is then `buf[..len]`).
 pub(crate) fn decode_in_place(buf: &mut [u8]) -> Result<usize> {

@@ -8,7 +8,8 @@
 //! * [`frame`]: framing. `0x00 ‖ COBS(payload ‖ CRC-32C) ‖ 0x00`; why these.
 //! * [`FrameAccumulator`]: reassembles frames from a byte stream in a fixed buffer and
 //!   resynchronises after damage (postcard's `CobsAccumulator` is the model).
-//! * [`DeviceMessage`], [`HostMessage`]: the messages and their layouts.
+//! * [`DeviceMessage`], [`HostMessage`]: the messages and their layouts; a window's centres
+//!   are packed per field ([`emit_detection`], [`DetectionFrame`]).
 //! * [`fixed`]: the fixed-point form of centres (1/1024 px), shared with the host's output.
 //! * [`events`]: compact event batches for replay.
 //! * [`device`]: the device's side of the protocol as a state machine the firmware drives.
@@ -71,21 +72,36 @@ pub mod fixed;
 pub mod frame;
 
 mod codec;
+mod detection;
 mod message;
 #[cfg(test)]
 mod tests;
 
+pub use detection::{
+    detection_frame_max, detection_payload_max, emit_core_detection, emit_detection, Centres, DetectionFrame,
+    DetectionHeader,
+};
 pub use device::{default_config, Device, DeviceOptions};
 pub use events::{emit_events, events_that_fit, BatchEvents, BatchSizer, EventBatch, EventCursor};
 pub use fixed::WireCentre;
 pub use frame::{Feed, FrameAccumulator};
-pub use message::{
-    detection_frame_max, detection_payload_max, emit_core_detection, emit_detection, Ack, Centres, Config,
-    DetectionFrame, DetectionHeader, DeviceMessage, End, Hello, HelloReply, HostMessage, Stats,
-};
+pub use message::{Ack, Config, DeviceMessage, End, Hello, HelloReply, HostMessage, Stats};
 
 /// The protocol version this crate speaks, carried in [`Hello`].
 pub const PROTOCOL_VERSION: u8 = 1;
+
+/// Message type bytes, as the table of [messages](self#messages) lists them. Here rather than
+/// beside any one message: every message's emitter writes its own, and the parsers of both
+/// directions read them all.
+pub(crate) mod kind {
+    pub const HELLO: u8 = 0x01;
+    pub const DETECTION: u8 = 0x02;
+    pub const STATS: u8 = 0x03;
+    pub const ACK: u8 = 0x04;
+    pub const CONFIG: u8 = 0x81;
+    pub const EVENTS: u8 = 0x82;
+    pub const END: u8 = 0x83;
+}
 
 /// What went wrong with a frame or a message.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,8 +5,9 @@
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
 //! rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
 
-use super::{RunCounts, ViewOrigin};
+use super::RunCounts;
 use crate::calib::{Calibration, Intrinsics};
+use crate::views::ViewOrigin;
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 

@@ -4,7 +4,8 @@
 //!
 //! ```no_run
 //! use evcal_host::calib::{calibrate, Options, View};
-//! use evcal_host::export::{write_all, Export, RunCounts, ViewOrigin, WindowSample};
+//! use evcal_host::export::{write_all, Export, RunCounts};
+//! use evcal_host::views::{ViewOrigin, WindowSample};
 //! # fn run(views: Vec<View>, origins: Vec<ViewOrigin>, timeline: Vec<WindowSample>) -> anyhow::Result<()> {
 //! let cal = calibrate(&views, [346, 260], &Options::default())?;
 //! let export = Export {
@@ -32,18 +33,9 @@ pub use report::{write_report, REPORT_SIZE};
 pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX};
 
 use crate::calib::{Calibration, View};
-use anyhow::{bail, Context, Result};
+use crate::views::{ViewOrigin, WindowSample};
+use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
-
-/// Where one input view came from: the detection window whose grid it is. Indexed like the
-/// views passed to [`calibrate`](crate::calib::calibrate).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ViewOrigin {
-    /// The window's sequence number (the `seq` of the detections file).
-    pub window_seq: u64,
-    /// The window's time, seconds from the start of the recording.
-    pub t_s: f64,
-}
 
 /// How much of the recording became views: the JSON result's `windows` and `detections`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -52,17 +44,6 @@ pub struct RunCounts {
     pub windows: u64,
     /// Windows in which the grid was found.
     pub detections: u64,
-}
-
-/// One detection window as the report's timeline draws it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct WindowSample {
-    /// The window's time, seconds from the start of the recording.
-    pub t_s: f64,
-    /// Circle centres the detector found in the window.
-    pub centres: usize,
-    /// Whether the grid was found among them.
-    pub grid_found: bool,
 }
 
 /// Everything [`write_all`] writes from. [`Export::new`] fills in the defaults; set the
@@ -183,20 +164,6 @@ fn marked_not_a_calibration(yaml: &str, why: &str) -> String {
     }
 }
 
-/// The residuals of every view the calibration used, in the order of `calibration.views`
-/// (see [`Calibration::residuals`]). `views` are the views given to the solver; an error when the
-/// calibration names a view that is not among them.
-pub fn residuals(views: &[View], calibration: &Calibration) -> Result<Vec<Vec<[f64; 2]>>> {
-    calibration
-        .views
-        .iter()
-        .map(|r| match views.get(r.view) {
-            Some(v) => Ok(calibration.residuals(v, r)),
-            None => bail!("the calibration used view {} but only {} views were given", r.view, views.len()),
-        })
-        .collect()
-}
-
 #[cfg(test)]
 pub(crate) mod testdata {
     //! Calibrations for the tests, made by the solver from synthetic views.
@@ -226,21 +193,6 @@ pub(crate) mod testdata {
 mod test {
     use super::testdata::*;
     use super::*;
-
-    #[test]
-    fn residuals_match_the_solver_view_errors() {
-        let (views, cal, _, _) = setup(&TRUTH, false);
-        let res = residuals(&views, &cal).unwrap();
-        assert_eq!(res.len(), cal.views.len());
-        for (r, v) in res.iter().zip(&cal.views) {
-            assert_eq!(r.len(), v.points);
-            let rms = (r.iter().map(|d| d[0] * d[0] + d[1] * d[1]).sum::<f64>() / r.len() as f64).sqrt();
-            assert!((rms - v.rms_px).abs() < 1e-9, "view {}: {rms} vs the solver's {}", v.view, v.rms_px);
-        }
-        // Too few views for the calibration's indices: an error, not a panic.
-        let e = residuals(&views[..2], &cal).unwrap_err().to_string();
-        assert!(e.contains("only 2 views were given"), "{e}");
-    }
 
     #[test]
     fn write_all_writes_every_file() {

@@ -5,8 +5,8 @@
 //! - where on the sensor the points were detected, with an 8×6 cell occupancy;
 //! - circle centres per detection window over time, with the windows whose grid was found.
 
-use super::{residuals, ViewOrigin, WindowSample};
 use crate::calib::{Calibration, View};
+use crate::views::{view_residuals, ViewOrigin, WindowSample};
 use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -76,7 +76,7 @@ pub fn write_report(
 /// The report as PNG bytes. Drawn into memory, so that a failure leaves no half-drawn file.
 fn render(cal: &Calibration, views: &[View], origins: &[ViewOrigin], timeline: &[WindowSample]) -> Result<Vec<u8>> {
     font_ready()?;
-    let res = residuals(views, cal)?;
+    let res = view_residuals(views, cal)?;
     let (w, h) = REPORT_SIZE;
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {

@@ -1,0 +1,78 @@
+//! The one big static memory the firmware runs in, and the role it is given: the protocol's
+//! device or the benchmark's detector. Whichever mode runs takes it, once; the other mode's
+//! value is never made, so RAM holds one detector's worth, not two.
+
+use crate::board;
+use core::{
+    mem::MaybeUninit,
+    ptr::addr_of_mut,
+    sync::atomic::{AtomicBool, Ordering},
+};
+use evcal_core::{
+    detect::DetectConfig,
+    event::SensorSize,
+    wire::{default_config, Device, DeviceOptions},
+};
+#[cfg(not(feature = "board-stm32f405"))]
+use evcal_firmware::runner::FwDetector;
+
+/// The configuration the device boots with, until a host sends its own: the core's
+/// defaults for a DAVIS346.
+const BOOT_CONFIG: DetectConfig = default_config(SensorSize::DAVIS346);
+
+/// How the device behaves on the link: credit for two frames (one being fed, one waiting in
+/// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
+const OPTIONS: DeviceOptions = DeviceOptions { window: 2, stats_every: 16, clock_hz: board::CLOCK_HZ };
+
+/// The protocol's device with the core's default capacities and buffers.
+pub type FwDevice = Device;
+
+/// What the big static memory holds: one detector's worth (some 43 KB of window buffer and
+/// clusterer), used by whichever mode runs.
+#[allow(clippy::large_enum_variant)] // the variants share one memory on purpose
+enum Role {
+    Protocol(FwDevice),
+    #[cfg(not(feature = "board-stm32f405"))]
+    Bench(FwDetector),
+}
+
+// The images a role starts from, built at compile time. Writing one into the static copies
+// it from flash; building the value at run time would put a temporary of the same size on
+// the stack first (measured: a 37 KB stack peak), RAM the budget would have to hold too.
+const PROTOCOL_IMAGE: Role = Role::Protocol(FwDevice::new(BOOT_CONFIG, OPTIONS));
+#[cfg(not(feature = "board-stm32f405"))]
+const BENCH_IMAGE: Role = Role::Bench(FwDetector::new(BOOT_CONFIG));
+
+static mut ROLE: MaybeUninit<Role> = MaybeUninit::uninit();
+static ROLE_TAKEN: AtomicBool = AtomicBool::new(false);
+
+/// The static memory, once.
+fn role(image: Role) -> Option<&'static mut Role> {
+    if ROLE_TAKEN.swap(true, Ordering::AcqRel) {
+        return None;
+    }
+    // SAFETY: the flag lets one caller through, once: this is the only reference ever made.
+    let slot = unsafe { &mut *addr_of_mut!(ROLE) };
+    Some(slot.write(image))
+}
+
+/// The detector for the benchmark, configured with `cfg`; `None` if the memory is taken.
+#[cfg(not(feature = "board-stm32f405"))]
+pub fn bench_detector(cfg: DetectConfig) -> Option<&'static mut FwDetector> {
+    match role(BENCH_IMAGE)? {
+        Role::Bench(d) => {
+            d.reconfigure(cfg);
+            Some(d)
+        }
+        Role::Protocol(_) => None,
+    }
+}
+
+/// The protocol's device in its boot configuration; `None` if the memory is taken.
+pub fn protocol_device() -> Option<&'static mut FwDevice> {
+    match role(PROTOCOL_IMAGE)? {
+        Role::Protocol(d) => Some(d),
+        #[cfg(not(feature = "board-stm32f405"))]
+        Role::Bench(_) => None,
+    }
+}
