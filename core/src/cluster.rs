@@ -55,6 +55,9 @@ pub const MAX_REACH_ROWS: usize = 32;
 /// defaults on a DAVIS346 take 7 rows of 357 cells. Sweeps that need more (wider sensors or
 /// neighbourhoods) and ST-DBSCAN walk cursors along the rows instead, as exactly but slower.
 pub const TABLE_CELLS: usize = 8192;
+/// The clustering's scratch, provided by its caller ([`Clusterer::cluster`]): the sort's
+/// buckets, then the sweep's column tables.
+pub type ColumnTables = [u16; TABLE_CELLS];
 
 /// DBSCAN settings, in normalised coordinates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -669,18 +672,20 @@ fn count_spans(events: &[WindowEvent], counts: &mut [u16], from: Row, to: Row, s
 }
 
 /// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
-/// inline: a label per event and a range per cluster, `2N + 4C` bytes (the events
-/// themselves are the caller's), and, while [`cluster`](Self::cluster) runs, the sort's
-/// scratch and the sweep's tables on the stack ([`TABLE_CELLS`], 16 KiB).
+/// inline: a label per event and a range per cluster, `2N + 4C` bytes; the events and the
+/// sort's scratch and sweep's tables ([`ColumnTables`], 16 KiB) are the caller's, so that
+/// they are counted where the caller keeps them (a detector's static storage on the
+/// device) rather than on the stack.
 ///
 /// `N` must be below 32 766 (checked at compile time).
 ///
 /// ```
-/// use evcal_core::{cluster::{Clusterer, ClusterConfig}, event::SensorSize, window::WindowEvent};
+/// use evcal_core::{cluster::{Clusterer, ClusterConfig, TABLE_CELLS}, event::SensorSize, window::WindowEvent};
 /// let mut events = [WindowEvent { x: 10, y: 10, dt_us: 0 }; 12];
 /// events[11] = WindowEvent { x: 200, y: 100, dt_us: 5 };
 /// let mut c: Clusterer<16, 4> = Clusterer::new();
-/// let stats = c.cluster(&mut events, SensorSize::DAVIS346, &ClusterConfig::default());
+/// let mut tables = [0u16; TABLE_CELLS];
+/// let stats = c.cluster(&mut events, SensorSize::DAVIS346, &ClusterConfig::default(), &mut tables);
 /// assert_eq!((stats.clusters, stats.noise), (1, 1));
 /// let ranges = c.group(&mut events);
 /// assert_eq!(ranges.len(), 1);
@@ -713,17 +718,29 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// Clusters `events` (at most `N`; the rest are counted as overflow and left out).
     /// Sorts `events` by pixel (row, column, then time); [`labels`](Self::labels) then gives
     /// each event's cluster (0-based), [`NOISE`] or [`DROPPED`].
-    pub fn cluster(&mut self, events: &mut [WindowEvent], sensor: SensorSize, cfg: &ClusterConfig) -> ClusterStats {
+    ///
+    /// `tables` is the caller's scratch for the sort and the column tables of the sweep
+    /// ([`ColumnTables`]): 16 KiB that would otherwise sit on the stack while this runs. Its
+    /// content on entry does not matter.
+    pub fn cluster(
+        &mut self,
+        events: &mut [WindowEvent],
+        sensor: SensorSize,
+        cfg: &ClusterConfig,
+        tables: &mut ColumnTables,
+    ) -> ClusterStats {
         let n = events.len().min(N);
         let mut stats =
             ClusterStats { events: n as u16, overflow: (events.len() - n).min(0xFFFF) as u16, ..Default::default() };
         let events = &mut events[..n];
         self.len = n;
         self.clusters = 0;
-        // Scratch for the sort, then the column tables of the sweep.
-        let mut cells = [0u16; TABLE_CELLS];
+        // Scratch for the sort, then the column tables of the sweep: cleared, as a fresh
+        // array would be, so that the result never depends on the previous window.
+        tables.fill(0);
+        let cells = tables;
         // Events in time order (a window's) end with the latest; the sort finds their bounds.
-        let (duration, [min_x, max_x, _, _]) = match sort_in_time_by_pixel(events, &mut self.labels, &mut cells) {
+        let (duration, [min_x, max_x, _, _]) = match sort_in_time_by_pixel(events, &mut self.labels, cells) {
             Some((bounds, latest)) => (latest, bounds),
             None => {
                 let (mut duration, mut min_x, mut max_x) = (0, u16::MAX, 0);
@@ -743,7 +760,7 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             self.pairwise(events, &m, min_pts, &mut stats, &mut work);
         } else {
             let tables = match m.dt_max {
-                None => self.by_tables(events, &mut cells, &m, min_pts, (min_x, max_x), &mut stats),
+                None => self.by_tables(events, cells, &m, min_pts, (min_x, max_x), &mut stats),
                 Some(_) => None,
             };
             match tables {
@@ -1401,7 +1418,7 @@ mod test {
     ) -> ClusterStats {
         let mut events = input.to_vec();
         let mut c: Clusterer<N, C> = Clusterer::new();
-        let stats = c.cluster(&mut events, sensor, cfg);
+        let stats = c.cluster(&mut events, sensor, cfg, &mut [0; TABLE_CELLS]);
         // Reordering is a permutation of the input.
         let mut a = input.to_vec();
         let mut b = events.clone();
@@ -1440,7 +1457,7 @@ mod test {
 
         let mut small = ev.clone();
         let mut c: Clusterer<100, 8> = Clusterer::new();
-        let s = c.cluster(&mut small, sensor, &ClusterConfig::default());
+        let s = c.cluster(&mut small, sensor, &ClusterConfig::default(), &mut [0; TABLE_CELLS]);
         assert_eq!((s.events, s.overflow), (100, 100));
     }
 
@@ -1474,7 +1491,7 @@ mod test {
         ev.extend(ring(250.0, 60.0, 4.0, 50, 0, 7));
         ev.push(WindowEvent { x: 340, y: 5, dt_us: 0 });
         let mut c: Clusterer<512, 8> = Clusterer::new();
-        let stats = c.cluster(&mut ev, sensor, &ClusterConfig::default());
+        let stats = c.cluster(&mut ev, sensor, &ClusterConfig::default(), &mut [0; TABLE_CELLS]);
         let labels_before: Vec<u16> = c.labels().to_vec();
         let ranges = c.group(&mut ev).to_vec();
         assert_eq!(ranges.len(), usize::from(stats.clusters));
@@ -1592,7 +1609,7 @@ mod test {
         ) {
             let mut ev: Vec<WindowEvent> = raw.into_iter().map(|(x, y, dt_us)| WindowEvent { x, y, dt_us }).collect();
             let mut c: Clusterer<256, 8> = Clusterer::new();
-            let stats = c.cluster(&mut ev, SensorSize::new(w, h), &ClusterConfig { eps, min_pts, eps_t: st });
+            let stats = c.cluster(&mut ev, SensorSize::new(w, h), &ClusterConfig { eps, min_pts, eps_t: st }, &mut [0; TABLE_CELLS]);
             prop_assert_eq!(usize::from(stats.events) + usize::from(stats.overflow), ev.len());
             let ranges = c.group(&mut ev).to_vec();
             prop_assert_eq!(ranges.len(), usize::from(stats.clusters));

@@ -7,7 +7,7 @@
 use crate::{
     arc::{Circle, Moments},
     cluster::sort_by_pixel,
-    cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer},
+    cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer, ColumnTables, TABLE_CELLS},
     config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
     fit::{fit_in, fit_with, Centre, Extent, FitConfig},
@@ -99,6 +99,31 @@ impl Clock for () {
     }
 }
 
+/// The working memory of one window's clustering and fits, which [`process`] takes from its
+/// caller: kept in the [`Detector`] (so in its `static` on the device, where the linker
+/// counts it) instead of on the stack while a window is processed. Nothing in it outlives a
+/// window.
+#[derive(Debug, Clone)]
+pub struct Scratch {
+    /// The clustering's sort buckets and column tables.
+    tables: ColumnTables,
+    /// The fits' events in their local frames (see `fit_with`).
+    fit: [[f32; 3]; FIT_SCRATCH_EVENTS],
+}
+
+impl Scratch {
+    /// Scratch memory, zeroed.
+    pub const fn new() -> Self {
+        Self { tables: [0; TABLE_CELLS], fit: [[0.0; 3]; FIT_SCRATCH_EVENTS] }
+    }
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 /// The detection pipeline for windows of at most `N` events and at most `C` clusters per
 /// window.
 #[derive(Debug, Clone)]
@@ -107,6 +132,7 @@ pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX
     filter: InputFilter,
     windower: Windower<N>,
     clusterer: Clusterer<N, C>,
+    scratch: Scratch,
     out: Detection<C>,
     ready: bool,
 }
@@ -119,6 +145,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
             filter: InputFilter::new(cfg.sensor),
             windower: Windower::new(cfg.window),
             clusterer: Clusterer::new(),
+            scratch: Scratch::new(),
             out: Detection {
                 info: WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 },
                 stats: WindowStats {
@@ -195,7 +222,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
             let cfg = self.cfg;
             let events = self.windower.events_mut();
             clock.window_begins();
-            process(&mut self.clusterer, events, &cfg, &mut self.out, clock);
+            process(&mut self.clusterer, &mut self.scratch, events, &cfg, &mut self.out, clock);
             clock.window_ends();
         }
         &self.out
@@ -223,6 +250,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
 /// half a radius, radii within a third) are therefore joined and fitted again as one.
 pub fn process<const N: usize, const C: usize>(
     clusterer: &mut Clusterer<N, C>,
+    scratch: &mut Scratch,
     events: &mut [WindowEvent],
     cfg: &DetectConfig,
     out: &mut Detection<C>,
@@ -230,7 +258,7 @@ pub fn process<const N: usize, const C: usize>(
 ) {
     let t0 = clock.now();
     let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
-    let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster);
+    let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster, &mut scratch.tables);
     let mut starts: heapless::Vec<Option<Circle>, C> = heapless::Vec::new();
     let mut extents: heapless::Vec<Extent, C> = heapless::Vec::new();
     let merged = join_crescents(clusterer, events, t_ref, &mut starts, &mut extents);
@@ -240,16 +268,18 @@ pub fn process<const N: usize, const C: usize>(
         let _ = ranges.push(*r);
     }
     let t1 = clock.now();
-    // The fits' events in their local frames (see `fit_with`).
-    let mut scratch = [[0.0f32; 3]; FIT_SCRATCH_EVENTS];
+    // The fits' events in their local frames (see `fit_with`), cleared as a fresh array
+    // would be: no window's result may depend on the one before.
+    let scratch = &mut scratch.fit;
+    scratch.fill([0.0; 3]);
     let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {
         let start = starts.get(k).copied().flatten();
         let extent = extents.get(k);
-        let _ = fits.push(fit_in(&[slice(events, r)], extent, start, t_ref, &cfg.fit, &mut scratch, CLUSTER_GIVE_UP));
+        let _ = fits.push(fit_in(&[slice(events, r)], extent, start, t_ref, &cfg.fit, scratch, CLUSTER_GIVE_UP));
     }
-    let merged = merged + join_fitted(events, &mut ranges, &mut extents, &mut fits, t_ref, &cfg.fit, &mut scratch);
-    recruit(events, &ranges, &extents, &mut fits, t_ref, &cfg.fit, &mut scratch);
+    let merged = merged + join_fitted(events, &mut ranges, &mut extents, &mut fits, t_ref, &cfg.fit, scratch);
+    recruit(events, &ranges, &extents, &mut fits, t_ref, &cfg.fit, scratch);
     let mut rejected = 0u16;
     out.centres.clear();
     for f in &fits {
@@ -691,7 +721,7 @@ mod test {
             let mut w: Vec<WindowEvent> =
                 ev.iter().map(|e| WindowEvent { x: e.x, y: e.y, dt_us: e.t_us as u32 }).collect();
             let mut c: Clusterer<2048, 64> = Clusterer::new();
-            c.cluster(&mut w, SensorSize::DAVIS346, &ClusterConfig::default());
+            c.cluster(&mut w, SensorSize::DAVIS346, &ClusterConfig::default(), &mut [0; TABLE_CELLS]);
             let (mut boxes, mut sums) = (Vec::new(), Vec::new());
             for r in c.group(&mut w) {
                 let part = &w[usize::from(r.start)..usize::from(r.end)];

@@ -8,9 +8,9 @@
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 use evcal_core::{
-    cluster::Clusterer,
+    cluster::{Clusterer, TABLE_CELLS},
     config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
-    detect::{process, Clock, DetectConfig, Detection},
+    detect::{process, Clock, DetectConfig, Detection, Scratch},
     event::SensorSize,
     window::{WindowEvent, WindowInfo, Windower},
 };
@@ -59,6 +59,8 @@ fn bench(c: &mut Criterion) {
     for (name, sensor, pattern, traj, light) in cases {
         let (det, wins) = windows(sensor, pattern, traj, light);
         let mut clusterer: Box<Cl> = Box::new(Clusterer::new());
+        let mut scratch: Box<Scratch> = Box::default();
+        let mut scratch_tables: Box<[u16; TABLE_CELLS]> = Box::new([0; TABLE_CELLS]);
         let mut out: Detection<MAX_CLUSTERS> =
             Detection { info: wins[0].0, stats: Default::default(), centres: heapless::Vec::new() };
         let mut k = 0usize;
@@ -69,7 +71,7 @@ fn bench(c: &mut Criterion) {
         c.bench_function(&format!("{name}/dbscan per window"), |b| {
             b.iter_batched_ref(
                 &mut next,
-                |(_, ev)| clusterer.cluster(ev, det.sensor, &det.cluster).clusters,
+                |(_, ev)| clusterer.cluster(ev, det.sensor, &det.cluster, &mut scratch_tables).clusters,
                 BatchSize::SmallInput,
             )
         });
@@ -78,7 +80,7 @@ fn bench(c: &mut Criterion) {
                 &mut next,
                 |(info, ev)| {
                     out.info = *info;
-                    process(&mut clusterer, ev, &det, &mut out, &mut ());
+                    process(&mut clusterer, &mut scratch, ev, &det, &mut out, &mut ());
                     out.centres.len()
                 },
                 BatchSize::SmallInput,
@@ -91,7 +93,7 @@ fn bench(c: &mut Criterion) {
             for (info, ev) in &wins {
                 let mut ev = ev.clone();
                 out.info = *info;
-                process(&mut clusterer, &mut ev, &det, &mut out, &mut Nanos(std::time::Instant::now()));
+                process(&mut clusterer, &mut scratch, &mut ev, &det, &mut out, &mut Nanos(std::time::Instant::now()));
                 cl += u64::from(out.stats.cluster_ticks);
                 fit += u64::from(out.stats.fit_ticks);
             }

@@ -80,7 +80,9 @@ fn bulk_replay_equals_the_host_core_bit_for_bit() {
     assert_eq!(run.num("events").unwrap(), events.len() as u64, "every event reached the detector");
     assert_eq!(run.get("end"), Some("End"));
     assert_eq!((run.num("out_of_sensor").unwrap(), run.num("time_backwards").unwrap()), (0, 0));
-    assert!(run.num("static_ram").unwrap() + run.num("stack_peak").unwrap() < 128 * 1024, "RAM budget");
+    let (ram, stack) = (run.num("static_ram").unwrap(), run.num("stack_peak").unwrap());
+    eprintln!("RAM: static {ram} B, stack peak {stack} B");
+    assert!(ram + stack < 128 * 1024, "RAM budget");
     let lines: String = run.windows.iter().map(|w| w.without_times().line()).collect();
     golden::assert_pinned("BENCH_LINES", "the firmware's bench lines", lines.as_bytes(), golden::BENCH_LINES);
 }
