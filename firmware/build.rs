@@ -6,12 +6,15 @@ use std::{env, fs, path::PathBuf};
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
-    // The default (emulated) board's map is the top-level memory.x; real boards have theirs
-    // in firmware/boards/.
+    // Each board's map is in firmware/boards/, copied here as the `memory.x` that
+    // cortex-m-rt's `link.x` includes. No `memory.x` may lie in the workspace root: cargo runs
+    // the linker there, and the linker looks for an INCLUDE in its working directory before
+    // the search path, so a root `memory.x` would be every board's map (the STM32F405 image
+    // was linked at 0x0 that way until `boards/mps2_an386.x` moved out of the root).
     let map = if env::var_os("CARGO_FEATURE_BOARD_STM32F405").is_some() {
         manifest.join("boards/stm32f405.x")
     } else {
-        manifest.join("../memory.x")
+        manifest.join("boards/mps2_an386.x")
     };
     fs::copy(&map, out.join("memory.x")).expect("copy the memory map");
     println!("cargo:rustc-link-search={}", out.display());

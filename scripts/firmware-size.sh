@@ -2,8 +2,10 @@
 # Checks a firmware image against the memory budget (docs/firmware.md, Budgets held in CI):
 # flash (.text + .rodata + .data, what the image puts in flash) at most 512 KiB, static RAM
 # (.data + .bss) at most 64 KiB, so that the stack keeps the rest of a 128 KiB part. The
-# linker enforces only the 512 KiB / 128 KiB regions (memory.x, firmware/boards/*.x);
+# linker enforces only the 512 KiB / 128 KiB regions (firmware/boards/*.x);
 # static RAM creeping past 64 KiB would eat the stack silently. Prints the figures.
+# With a board's NAME (mps2-an386, stm32f405) it also checks that the image starts at that
+# board's flash (its vector table where the chip boots from).
 #   bash scripts/firmware-size.sh ELF [NAME]
 set -euo pipefail
 elf="$1"; name="${2:-$1}"
@@ -16,4 +18,14 @@ echo "firmware size: $name: flash $flash B of $flash_budget, static RAM $ram B o
 ok=1
 [ "$flash" -le "$flash_budget" ] || { echo "firmware size: $name: flash over budget by $((flash - flash_budget)) B" >&2; ok=0; }
 [ "$ram" -le "$ram_budget" ] || { echo "firmware size: $name: static RAM over budget by $((ram - ram_budget)) B" >&2; ok=0; }
+case "$name" in
+  mps2-an386) origin=0x00000000 ;;
+  stm32f405) origin=0x08000000 ;;
+  *) origin= ;;
+esac
+if [ -n "$origin" ]; then
+  vt=$(size -A "$elf" | awk '$1 == ".vector_table" { print $3 }')
+  [ "$((vt))" -eq "$((origin))" ] \
+    || { echo "firmware size: $name: vector table at $(printf '0x%08x' "$vt"), not at the board's flash $origin" >&2; ok=0; }
+fi
 [ "$ok" = 1 ]
