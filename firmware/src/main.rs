@@ -16,12 +16,17 @@ fn main() {
 }
 
 // Logging: defmt with the `defmt` feature, nothing without (the arguments are still
-// evaluated for type checks, not formatted). Must come before the modules that log.
+// borrowed, so they are type-checked and count as used, but not formatted). Must come before
+// the modules that log.
 #[cfg(target_os = "none")]
 macro_rules! log_info {
-    ($($arg:tt)*) => {{
+    ($fmt:literal $(, $arg:expr)* $(,)?) => {{
         #[cfg(feature = "defmt")]
-        defmt::info!($($arg)*);
+        defmt::info!($fmt $(, $arg)*);
+        #[cfg(not(feature = "defmt"))]
+        {
+            $(let _ = &$arg;)*
+        }
     }};
 }
 
