@@ -18,11 +18,6 @@
 //! sensor-fed device starts from.
 
 use crate::board::{self, Board, CycleDelay, SysTickClock, WaitForByte};
-use core::{
-    mem::MaybeUninit,
-    ptr::addr_of_mut,
-    sync::atomic::{AtomicBool, Ordering},
-};
 use embedded_hal::{digital::OutputPin, i2c::I2c};
 use embedded_hal_nb::{nb, serial};
 use evcal_core::{
@@ -44,6 +39,7 @@ use evcal_firmware::{
     sensor::{AddressSet, ResetTiming, SensorControl},
     source::{EventSource, SourceError},
 };
+use static_cell::StaticCell;
 
 /// The board's SysTick clock, calling the `#[no_mangle]` marker functions that the
 /// instruction counter breaks on around each window's clustering and fitting, and lighting
@@ -112,17 +108,13 @@ const PROTOCOL_IMAGE: Role = Role::Protocol(FwDevice::new(BOOT_CONFIG, OPTIONS))
 #[cfg(not(feature = "board-stm32f405"))]
 const BENCH_IMAGE: Role = Role::Bench(FwDetector::new(BOOT_CONFIG));
 
-static mut ROLE: MaybeUninit<Role> = MaybeUninit::uninit();
-static ROLE_TAKEN: AtomicBool = AtomicBool::new(false);
+static ROLE: StaticCell<Role> = StaticCell::new();
 
-/// The static memory, once.
+/// The static memory, once. Written in place (`try_uninit`, then `write`): the image goes
+/// from flash into the static without a copy on the stack (`StaticCell::init(image)` takes
+/// it by value, which may pass through one).
 fn role(image: Role) -> Option<&'static mut Role> {
-    if ROLE_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag lets one caller through, once: this is the only reference ever made.
-    let slot = unsafe { &mut *addr_of_mut!(ROLE) };
-    Some(slot.write(image))
+    Some(ROLE.try_uninit()?.write(image))
 }
 
 /// The detector for the benchmark, configured with `cfg`; `None` if the memory is taken.

@@ -68,9 +68,8 @@ pub extern "C" fn bench_stop() {
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    // The benchmark reports the stack's high-water mark (emulator only).
-    #[cfg(not(feature = "board-stm32f405"))]
-    stack::paint();
+    // cortex-m-rt painted the stack before `main` (its `paint-stack` feature): the benchmark
+    // reports the high-water mark (`stack`, emulator only).
     // `take` succeeds exactly once, and this is the first call.
     let Some(cp) = cortex_m::Peripherals::take() else { board::exit(false) };
     let board = board::init(cp);
