@@ -4,8 +4,8 @@
 //! bus on I2C1, PB6 (SCL) / PB7 (SDA), at 100 kHz.
 //!
 //! Flash with `probe-rs run --chip STM32F405RGTx` (see docs/firmware.md). No board is here to
-//! test it: it is built in CI, not run. The pins are constants below; a board wired otherwise
-//! changes them there (and the types of [`BoardImpl`]'s fields).
+//! test it: it is built in CI, not run. A board wired otherwise changes the pins in [`init`]
+//! and the types of [`BoardImpl`]'s fields.
 //!
 //! The receiver is polled: the protocol's flow control (the host sends an event batch only
 //! when the device has asked for one and is waiting for it) keeps bytes from arriving while
@@ -56,7 +56,11 @@ pub fn init(cp: cortex_m::Peripherals) -> BoardImpl {
     let Ok(uart) = dp.USART2.serial((gpioa.pa2, gpioa.pa3), config, &mut rcc) else { exit(false) };
     let led = gpiod.pd12.into_push_pull_output();
     let reset = gpiob.pb0.into_push_pull_output();
-    let bus = dp.I2C1.i2c((gpiob.pb6, gpiob.pb7), i2c::Mode::standard(I2C_HZ.Hz()), &mut rcc);
+    // The pins' internal pull-ups (some 40 kΩ) keep a bus with nothing on it idle high: the
+    // HAL waits for a free bus without a time limit, so a floating one would stop the boot's
+    // bus scan. A sensor's bus still needs its own, stronger pull-ups.
+    let (scl, sda) = (gpiob.pb6.internal_pull_up(true), gpiob.pb7.internal_pull_up(true));
+    let bus = dp.I2C1.i2c((scl, sda), i2c::Mode::standard(I2C_HZ.Hz()), &mut rcc);
     BoardImpl { uart, led, sensor: Some((reset, bus)), clock: SysTickClock::start(cp.SYST) }
 }
 
