@@ -6,14 +6,20 @@ use std::{env, fs, path::PathBuf};
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
     let manifest = PathBuf::from(env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
-    // The default (emulated) board's map is the top-level memory.x; real boards have theirs
-    // in firmware/boards/.
+    // Each board's map is in firmware/boards/, put here as `board.x`, which the workspace's
+    // top-level `memory.x` includes (cortex-m-rt's `link.x` includes `memory.x`). The linker
+    // looks for an INCLUDE in its working directory (the workspace root, where cargo runs it)
+    // before the search path, so the root `memory.x` names no board itself; a copy of it
+    // here serves a build run from elsewhere.
     let map = if env::var_os("CARGO_FEATURE_BOARD_STM32F405").is_some() {
         manifest.join("boards/stm32f405.x")
     } else {
-        manifest.join("../memory.x")
+        manifest.join("boards/mps2_an386.x")
     };
-    fs::copy(&map, out.join("memory.x")).expect("copy the memory map");
+    let root_map = manifest.join("../memory.x");
+    fs::copy(&map, out.join("board.x")).expect("copy the board's memory map");
+    fs::copy(&root_map, out.join("memory.x")).expect("copy the top-level memory.x");
+    println!("cargo:rerun-if-changed={}", root_map.display());
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed={}", map.display());
     println!("cargo:rerun-if-changed=build.rs");

@@ -4,8 +4,10 @@
 # (.data + .bss) at most 80 KiB, so that the stack keeps 48 KiB of a 128 KiB part (its peak
 # is 43.7 KB on the emulated board, docs/firmware.md). The detector's working memory is in
 # its static storage, so this figure is the real budget. The linker enforces only the
-# 512 KiB / 128 KiB regions (memory.x, firmware/boards/*.x); static RAM creeping past 80 KiB
+# 512 KiB / 128 KiB regions (firmware/boards/*.x); static RAM creeping past 80 KiB
 # would eat the stack silently. Prints the figures.
+# With a board's NAME (mps2-an386, stm32f405) it also checks that the image starts at that
+# board's flash (its vector table where the chip boots from).
 #   bash scripts/firmware-size.sh ELF [NAME]
 set -euo pipefail
 elf="$1"; name="${2:-$1}"
@@ -18,4 +20,14 @@ echo "firmware size: $name: flash $flash B of $flash_budget, static RAM $ram B o
 ok=1
 [ "$flash" -le "$flash_budget" ] || { echo "firmware size: $name: flash over budget by $((flash - flash_budget)) B" >&2; ok=0; }
 [ "$ram" -le "$ram_budget" ] || { echo "firmware size: $name: static RAM over budget by $((ram - ram_budget)) B" >&2; ok=0; }
+case "$name" in
+  mps2-an386) origin=0x00000000 ;;
+  stm32f405) origin=0x08000000 ;;
+  *) origin= ;;
+esac
+if [ -n "$origin" ]; then
+  vt=$(size -A "$elf" | awk '$1 == ".vector_table" { print $3 }')
+  [ "$((vt))" -eq "$((origin))" ] \
+    || { echo "firmware size: $name: vector table at $(printf '0x%08x' "$vt"), not at the board's flash $origin" >&2; ok=0; }
+fi
 [ "$ok" = 1 ]

@@ -4,7 +4,7 @@
 //! as their bit patterns), then a summary line with the counts and the memory used.
 
 use crate::{
-    board::{self, Board, BoardImpl},
+    board::{self, Board},
     markers::MarkedClock,
     role::bench_detector,
     stack,
@@ -81,7 +81,7 @@ fn write_window<const C: usize>(w: &mut impl Write, d: &Detection<C>) -> core::f
 }
 
 /// The benchmark replay (see the module's doc).
-pub fn run(board: &mut BoardImpl, args: &str) -> bool {
+pub fn run<B: Board>(board: &mut B, args: &str) -> bool {
     use evcal_firmware::bulk::BulkSource;
     let mut words = args.split_ascii_whitespace();
     let Some(path) = words.next() else {
@@ -109,14 +109,16 @@ pub fn run(board: &mut BoardImpl, args: &str) -> bool {
     let Ok(out) = cortex_m_semihosting::hio::hstdout() else { return false };
     let mut out = HostOut { out, buf: [0; 512], len: 0 };
     let Some(det) = bench_detector(cfg) else { return false };
-    let mut runner = Runner::new(det, MarkedClock(board.clock()));
+    let ticks = board.clock();
+    let (_, led) = board.io();
+    let mut runner = Runner::new(det, MarkedClock::new(ticks, led));
     let mut write_ok = true;
     let end = runner.drain(&mut src, |d| write_ok &= write_window(&mut out, d).is_ok());
     let input = runner.detector().input_stats();
     let SensorSize { width, height } = cfg.sensor;
     write_ok &= writeln!(
         out,
-        "S events {} windows {} out_of_sensor {} time_backwards {} pending {} end {:?} sensor {}x{} window {} step_us {} clock_hz {} link_overruns {} static_ram {} stack_peak {}",
+        "S events {} windows {} out_of_sensor {} time_backwards {} pending {} end {:?} sensor {}x{} window {} step_us {} clock_hz {} static_ram {} stack_peak {}",
         runner.events(),
         runner.windows(),
         input.out_of_sensor,
@@ -128,7 +130,6 @@ pub fn run(board: &mut BoardImpl, args: &str) -> bool {
         runner.detector().config().window.events,
         cfg.window.step_us,
         board::CLOCK_HZ,
-        board.serial_overruns(),
         stack::statics(),
         stack::high_water(),
     )

@@ -15,6 +15,8 @@
 //!   behind the same trait).
 //! * [`runner`]: the window loop (feed, process between the benchmark markers, hand each
 //!   detection on), shared by every mode of the firmware.
+//! * [`sensor`]: a sensor's reset line and control bus (embedded-hal `OutputPin` and `I2c`):
+//!   reset, bus scan, and a hook for the sensor's own configuration writes.
 #![cfg_attr(not(test), no_std)]
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
@@ -22,4 +24,5 @@
 pub mod bulk;
 pub mod evt;
 pub mod runner;
+pub mod sensor;
 pub mod source;

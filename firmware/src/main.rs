@@ -16,12 +16,17 @@ fn main() {
 }
 
 // Logging: defmt with the `defmt` feature, nothing without (the arguments are still
-// evaluated for type checks, not formatted). Must come before the modules that log.
+// borrowed, so they are type-checked and count as used, but not formatted). Must come before
+// the modules that log.
 #[cfg(target_os = "none")]
 macro_rules! log_info {
-    ($($arg:tt)*) => {{
+    ($fmt:literal $(, $arg:expr)* $(,)?) => {{
         #[cfg(feature = "defmt")]
-        defmt::info!($($arg)*);
+        defmt::info!($fmt $(, $arg)*);
+        #[cfg(not(feature = "defmt"))]
+        {
+            $(let _ = &$arg;)*
+        }
     }};
 }
 
@@ -48,9 +53,8 @@ use defmt_semihosting as _;
 #[cfg(target_os = "none")]
 #[cortex_m_rt::entry]
 fn main() -> ! {
-    // The benchmark reports the stack's high-water mark (emulator only).
-    #[cfg(not(feature = "board-stm32f405"))]
-    stack::paint();
+    // cortex-m-rt painted the stack before `main` (its `paint-stack` feature): the benchmark
+    // reports the high-water mark (`stack`, emulator only).
     // `take` succeeds exactly once, and this is the first call.
     let Some(cp) = cortex_m::Peripherals::take() else { board::exit(false) };
     let board = board::init(cp);

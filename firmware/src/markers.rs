@@ -3,6 +3,7 @@
 //! detector calls them, so that they bracket the work however deep the detector sits.
 
 use crate::board::SysTickClock;
+use embedded_hal::digital::OutputPin;
 use evcal_core::detect::Clock;
 
 /// Marks the start of one window's processing for an external instruction counter (the
@@ -23,18 +24,32 @@ pub extern "C" fn bench_stop() {
 }
 
 /// The board's SysTick clock, calling the `#[no_mangle]` marker functions that the
-/// instruction counter breaks on around each window's clustering and fitting.
-#[derive(Clone, Copy)]
-pub struct MarkedClock(pub SysTickClock);
+/// instruction counter breaks on around each window's clustering and fitting, and lighting
+/// the status LED while a window is worked on (outside the markers: the LED costs the
+/// measured windows nothing).
+pub struct MarkedClock<'a, L> {
+    ticks: SysTickClock,
+    led: &'a mut L,
+}
 
-impl Clock for MarkedClock {
+impl<'a, L: OutputPin> MarkedClock<'a, L> {
+    /// `ticks`, marking windows with the benchmark markers and `led`.
+    pub fn new(ticks: SysTickClock, led: &'a mut L) -> Self {
+        Self { ticks, led }
+    }
+}
+
+impl<L: OutputPin> Clock for MarkedClock<'_, L> {
     fn now(&mut self) -> u32 {
-        self.0.now()
+        self.ticks.now()
     }
     fn window_begins(&mut self) {
+        // An LED that cannot be driven changes nothing else.
+        let _ = self.led.set_high();
         bench_start();
     }
     fn window_ends(&mut self) {
         bench_stop();
+        let _ = self.led.set_low();
     }
 }

@@ -3,11 +3,6 @@
 //! value is never made, so RAM holds one detector's worth, not two.
 
 use crate::board;
-use core::{
-    mem::MaybeUninit,
-    ptr::addr_of_mut,
-    sync::atomic::{AtomicBool, Ordering},
-};
 use evcal_core::{
     detect::DetectConfig,
     event::SensorSize,
@@ -15,6 +10,7 @@ use evcal_core::{
 };
 #[cfg(not(feature = "board-stm32f405"))]
 use evcal_firmware::runner::FwDetector;
+use static_cell::StaticCell;
 
 /// The configuration the device boots with, until a host sends its own: the core's
 /// defaults for a DAVIS346.
@@ -43,17 +39,13 @@ const PROTOCOL_IMAGE: Role = Role::Protocol(FwDevice::new(BOOT_CONFIG, OPTIONS))
 #[cfg(not(feature = "board-stm32f405"))]
 const BENCH_IMAGE: Role = Role::Bench(FwDetector::new(BOOT_CONFIG));
 
-static mut ROLE: MaybeUninit<Role> = MaybeUninit::uninit();
-static ROLE_TAKEN: AtomicBool = AtomicBool::new(false);
+static ROLE: StaticCell<Role> = StaticCell::new();
 
-/// The static memory, once.
+/// The static memory, once. Written in place (`try_uninit`, then `write`): the image goes
+/// from flash into the static without a copy on the stack (`StaticCell::init(image)` takes
+/// it by value, which may pass through one).
 fn role(image: Role) -> Option<&'static mut Role> {
-    if ROLE_TAKEN.swap(true, Ordering::AcqRel) {
-        return None;
-    }
-    // SAFETY: the flag lets one caller through, once: this is the only reference ever made.
-    let slot = unsafe { &mut *addr_of_mut!(ROLE) };
-    Some(slot.write(image))
+    Some(ROLE.try_uninit()?.write(image))
 }
 
 /// The detector for the benchmark, configured with `cfg`; `None` if the memory is taken.

@@ -1,15 +1,14 @@
-//! Stack high-water mark: the stack region is painted at boot and the untouched part is
-//! measured later, so the RAM figure reported covers the stack as well as the statics.
+//! Stack high-water mark: cortex-m-rt's reset handler paints the whole stack before `main`
+//! (its `paint-stack` feature, with [`cortex_m_rt::STACK_PAINT_VALUE`]), and the untouched
+//! part is measured later, so the RAM figure reported covers the stack as well as the
+//! statics.
 
-use core::ptr::{addr_of, read_volatile, write_volatile};
-
-const PAINT: u32 = 0x5A5A_A5A5;
-/// Bytes under the current stack pointer left unpainted: the painting function's own frame.
-const MARGIN: usize = 256;
+use core::ptr::{addr_of, read_volatile};
+use cortex_m_rt::STACK_PAINT_VALUE;
 
 extern "C" {
     // cortex-m-rt's linker script: the stack runs from `_stack_start` (top of RAM) down to
-    // `_stack_end` (the end of the statics).
+    // `_stack_end` (the end of the statics); both are what the reset handler paints between.
     static _stack_start: u32;
     static _stack_end: u32;
 }
@@ -19,25 +18,13 @@ fn bounds() -> (usize, usize) {
     (addr_of!(_stack_end) as usize, addr_of!(_stack_start) as usize)
 }
 
-/// Paints the free stack. Call first thing in `main`.
-#[inline(never)]
-pub fn paint() {
-    let (low, _) = bounds();
-    let sp = cortex_m::register::msp::read() as usize;
-    let mut a = low;
-    while a + 4 <= sp.saturating_sub(MARGIN) {
-        // SAFETY: [low, sp - MARGIN) is stack that no frame uses yet.
-        unsafe { write_volatile(a as *mut u32, PAINT) };
-        a += 4;
-    }
-}
-
-/// The most stack used since [`paint`], in bytes.
+/// The most stack used since boot, in bytes: from the top down to the lowest word that no
+/// longer holds the paint.
 pub fn high_water() -> usize {
     let (low, top) = bounds();
     let mut a = low;
     // SAFETY: reads within the stack region, word-aligned (cortex-m-rt aligns both ends).
-    while a < top && unsafe { read_volatile(a as *const u32) } == PAINT {
+    while a < top && unsafe { read_volatile(a as *const u32) } == STACK_PAINT_VALUE {
         a += 4;
     }
     top - a

@@ -164,6 +164,30 @@ fn faults_and_panics_exit_qemu_with_failure() {
     }
 }
 
+/// The emulated board's sensor bus (its bit-banged I2C driver behind embedded-hal's `I2c`):
+/// the sensor's bring-up finds exactly the devices QEMU puts on the bus (two of QEMU's own
+/// I2C models, standing in for a sensor: any device that acknowledges its address), and none
+/// on an empty bus.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn sensor_bus_scan_finds_the_devices_on_the_emulated_bus() {
+    let elf = elf();
+    let devices: [&[&str]; 2] = [&[], &["-device", "tmp105,address=0x48", "-device", "at24c-eeprom,address=0x50"]];
+    for (args, says) in devices.into_iter().zip(["sensor bus: none\n", "sensor bus: 0x48 0x50\n"]) {
+        let out = Command::new("bash")
+            .arg(firmware::workspace_root().join("scripts/qemu-run.sh"))
+            .arg(&elf)
+            .args(["-append", "sensor"])
+            .args(args)
+            .env("EVCAL_QEMU_TIMEOUT", "60")
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(0), "{args:?}: {err}");
+        assert_eq!(String::from_utf8_lossy(&out.stdout), says, "{args:?}: {err}");
+    }
+}
+
 /// More than 100 windows of 4000 events replayed through the emulated UART as the wire
 /// protocol's event batches (flow-controlled by the device's acknowledgements): the
 /// detection frames the device sends are byte for byte the frames the host's run of the core

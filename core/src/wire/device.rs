@@ -20,7 +20,7 @@
 //!   the UART or the host, and the host's credit ([`Ack::window`]) bounds how many can wait.
 //!
 //! ```ignore
-//! // firmware main loop (embedded-io serial, a SysTick clock)
+//! // firmware main loop (a blocking serial port, a SysTick clock)
 //! let mut buf = [0u8; 64];
 //! let (mut start, mut end) = (0, 0);
 //! loop {
@@ -42,16 +42,25 @@
 //! # Memory
 //!
 //! `Device` is large: 49,920 bytes with the default capacities (the detector's window buffer
-//! and clusterer, about 47.6 KB, plus `RX + TX`). Give it a `static` home, built at compile
-//! time ([`Device::new`] and [`default_config`] are `const fn`), so that no temporary copy
-//! ever lands on the stack:
+//! and clusterer, about 47.6 KB, plus `RX + TX`). Give it a `static` home, and build it at
+//! compile time ([`Device::new`] and [`default_config`] are `const fn`), so that no temporary
+//! copy ever lands on the stack: with `static_cell`, as the firmware does, the image is
+//! written into the static's memory in place:
 //!
 //! ```
 //! use evcal_core::{event::SensorSize, wire::{default_config, Device, DeviceOptions}};
-//! static mut DEVICE: Device = Device::new(
+//! use static_cell::StaticCell;
+//!
+//! const IMAGE: Device = Device::new(
 //!     default_config(SensorSize::DAVIS346),
 //!     DeviceOptions { clock_hz: 168_000_000, ..DeviceOptions::DEFAULT },
 //! );
+//! static DEVICE: StaticCell<Device> = StaticCell::new();
+//!
+//! // Once, at start-up: the only `&'static mut` to it there will be.
+//! let dev: &'static mut Device = DEVICE.try_uninit().expect("first use").write(IMAGE);
+//! assert!(DEVICE.try_uninit().is_none());
+//! # let _ = dev;
 //! ```
 //!
 //! A host's [`Config`] resets the detector in place (`Detector::reconfigure`); measured on
