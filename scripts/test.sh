@@ -68,10 +68,11 @@ EVCAL_FUZZ_SKIP="read_h5" bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-8}"
 # The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
 # replay is 35 s of it), and the instruction budget over the benchmark's scenario about 25 s
 # more on 2 loaded cores (its simulation mostly); the test binary is the workspace tests'
-# build, the image the one built above. See tests/tests/firmware_qemu.rs. Ignored by a plain
-# `cargo test`, which needs no QEMU.
+# build (`--workspace`: with `-p evcal-tests` alone the features unify otherwise and the host
+# library is built again, minutes of CI), the image the one built above. See
+# tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which needs no QEMU.
 step "firmware under QEMU (emulated Cortex-M4F board)"
-cargo test -p evcal-tests --test firmware_qemu -- --ignored 2>&1 | tee -a target/test-output.txt
+cargo test --workspace --test firmware_qemu -- --ignored 2>&1 | tee -a target/test-output.txt
 
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt
