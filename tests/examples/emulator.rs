@@ -100,21 +100,28 @@ impl Truth {
     }
 }
 
-/// The true image of board point `o` at `t`: the projection of the circle's centre, and the
-/// centre of its projected outline (the ellipse's).
-fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<([f64; 2], [f64; 2])> {
+/// The projection of board point `o`'s centre at `t`, and `n` points around its circle's
+/// projected outline.
+fn true_outline(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, n: usize) -> Option<([f64; 2], Vec<[f64; 2]>)> {
     let (rv, tv) = truth.pose_at(t);
     let rot = Rotation3::new(Vector3::from(rv));
     let tv = Vector3::from(tv);
     let cam = |x: f64, y: f64| rot * Vector3::new(x, y, 0.0) + tv;
     let centre = k.project(&cam(o[0], o[1]))?;
     let r = truth.pattern.radius_m;
-    let n = 96;
     let mut pts = Vec::with_capacity(n);
     for j in 0..n {
         let a = std::f64::consts::TAU * j as f64 / n as f64;
         pts.push(k.project(&cam(o[0] + r * a.cos(), o[1] + r * a.sin()))?);
     }
+    Some((centre, pts))
+}
+
+/// The true image of board point `o` at `t`: the projection of the circle's centre, and the
+/// centre of its projected outline (the ellipse's).
+fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<([f64; 2], [f64; 2])> {
+    let n = 96;
+    let (centre, pts) = true_outline(truth, k, o, t, n)?;
     let (mut area, mut cx, mut cy) = (0.0, 0.0, 0.0);
     for j in 0..n {
         let ([x0, y0], [x1, y1]) = (pts[j], pts[(j + 1) % n]);
@@ -131,17 +138,8 @@ fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<(
 /// times |motion · normal| (`u`, a unit image direction), fitted by a weighted algebraic
 /// circle fit.
 fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: [f64; 2]) -> Option<[f64; 2]> {
-    let (rv, tv) = truth.pose_at(t);
-    let rot = Rotation3::new(Vector3::from(rv));
-    let tv = Vector3::from(tv);
-    let cam = |x: f64, y: f64| rot * Vector3::new(x, y, 0.0) + tv;
-    let r = truth.pattern.radius_m;
     let n = 256;
-    let mut pts = Vec::with_capacity(n);
-    for j in 0..n {
-        let a = std::f64::consts::TAU * j as f64 / n as f64;
-        pts.push(k.project(&cam(o[0] + r * a.cos(), o[1] + r * a.sin()))?);
-    }
+    let (_, pts) = true_outline(truth, k, o, t, n)?;
     let c0 = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
     // Weighted Kasa fit: x² + y² + D x + E y + F = 0, in coordinates about c0.
     let mut m = nalgebra::Matrix3::<f64>::zeros();
