@@ -9,7 +9,8 @@ fn pixel(e: &WindowEvent) -> u32 {
     (u32::from(e.y) << 16) | u32::from(e.x)
 }
 
-/// The order [`Clusterer::cluster`](super::Clusterer::cluster) sorts events into: by pixel (row, column), then time.
+/// The order [`Clusterer::cluster`](super::Clusterer::cluster) sorts events into: by pixel
+/// (row, column), then time.
 #[inline]
 pub fn pixel_order(e: &WindowEvent) -> u64 {
     (u64::from(pixel(e)) << 32) | u64::from(e.dt_us)

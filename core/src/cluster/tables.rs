@@ -10,8 +10,9 @@ use crate::window::WindowEvent;
 /// defaults on a DAVIS346 take 7 rows of 357 cells. Sweeps that need more (wider sensors or
 /// neighbourhoods) and ST-DBSCAN walk cursors along the rows instead, as exactly but slower.
 pub const TABLE_CELLS: usize = 8192;
-/// The clustering's scratch, provided by its caller ([`Clusterer::cluster`](super::Clusterer::cluster)): the sort's
-/// buckets, then the sweep's column tables.
+/// The clustering's scratch, provided by its caller
+/// ([`Clusterer::cluster`](super::Clusterer::cluster)): the sort's buckets, then the sweep's
+/// column tables.
 pub type ColumnTables = [u16; TABLE_CELLS];
 
 /// Most rows whose column tables are kept at once: those within reach of the row being
