@@ -1,7 +1,7 @@
 //! Recording the detections of a device that has its own sensor: the host only listens.
 
+use super::Result;
 use super::{Incoming, Link, Progress, Seen, WindowSeq};
-use anyhow::Result;
 use evcal_core::wire::{Hello, Stats};
 use std::{
     sync::atomic::{AtomicBool, Ordering},

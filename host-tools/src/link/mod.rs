@@ -18,7 +18,6 @@ pub mod replay;
 pub mod virtual_device;
 
 use crate::detections::WindowRecord;
-use anyhow::{bail, Context, Result};
 use evcal_core::wire::{self, DeviceMessage, Feed, FrameAccumulator, Hello, Stats};
 use std::{
     io::{ErrorKind, Read, Write},
@@ -30,6 +29,63 @@ use std::{
     },
     time::{Duration, Instant},
 };
+
+/// Why the link to a device, or a session over it, failed. The messages name what was being
+/// done; the system's error, where there is one, is the [`source`](std::error::Error::source).
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// A `--port` that names no transport evcal has.
+    #[error("{0}")]
+    Port(String),
+    /// The transport failed.
+    #[error("{what}")]
+    Io {
+        /// What was being done.
+        what: String,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A serial port could not be opened or shared with the reader thread.
+    #[error("{what}")]
+    Serial {
+        /// What was being done.
+        what: String,
+        /// The serial port library's error.
+        #[source]
+        source: serialport::Error,
+    },
+    /// The device broke the protocol, refused the configuration, restarted or stopped
+    /// answering, or the link closed.
+    #[error("{0}")]
+    Device(String),
+    /// A frame could not be encoded (a value out of the wire format's range).
+    #[error("encoding a frame: {0}")]
+    Encode(wire::Error),
+}
+
+impl From<wire::Error> for LinkError {
+    fn from(e: wire::Error) -> Self {
+        Self::Encode(e)
+    }
+}
+
+/// Returns a [`LinkError::Device`] with a formatted message.
+macro_rules! refuse {
+    ($($arg:tt)*) => {
+        return Err($crate::link::LinkError::Device(format!($($arg)*)))
+    };
+}
+pub(crate) use refuse;
+
+/// The link's results.
+pub type Result<T, E = LinkError> = std::result::Result<T, E>;
+
+/// An I/O error while doing `what`.
+fn io(what: impl Into<String>) -> impl FnOnce(std::io::Error) -> LinkError {
+    let what = what.into();
+    move |source| LinkError::Io { what, source }
+}
 
 /// Largest frame the host accepts from a device (a detection of 96 centres is under 2 KiB).
 pub const HOST_RX_FRAME: usize = 16 * 1024;
@@ -48,11 +104,11 @@ impl Port {
     pub fn parse(s: &str) -> Result<Self> {
         if let Some(addr) = s.strip_prefix("tcp:") {
             if addr.rsplit_once(':').is_none_or(|(h, p)| h.is_empty() || p.parse::<u16>().is_err()) {
-                bail!("--port {s}: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:7878");
+                return Err(LinkError::Port(format!("--port {s}: expected tcp:HOST:PORT, e.g. tcp:127.0.0.1:7878")));
             }
             Ok(Self::Tcp(addr.to_string()))
         } else if s.is_empty() {
-            bail!("--port is empty: give a serial device (e.g. /dev/ttyACM0) or tcp:HOST:PORT");
+            Err(LinkError::Port("--port is empty: give a serial device (e.g. /dev/ttyACM0) or tcp:HOST:PORT".into()))
         } else {
             Ok(Self::Serial(s.to_string()))
         }
@@ -115,17 +171,19 @@ impl Link {
             Port::Tcp(addr) => {
                 let stream = connect_tcp(addr, connect_timeout)?;
                 // QEMU answers in ~3.5 ms per round trip with Nagle off, ~47 ms with it on.
-                stream.set_nodelay(true).context("setting TCP_NODELAY")?;
-                stream.set_read_timeout(Some(Duration::from_millis(200))).context("setting a read time-out")?;
-                let reader = stream.try_clone().context("cloning the TCP stream")?;
+                stream.set_nodelay(true).map_err(io("setting TCP_NODELAY"))?;
+                stream.set_read_timeout(Some(Duration::from_millis(200))).map_err(io("setting a read time-out"))?;
+                let reader = stream.try_clone().map_err(io("cloning the TCP stream"))?;
                 Ok(Self::new(reader, stream))
             }
             Port::Serial(path) => {
-                let port = serialport::new(path, baud)
-                    .timeout(Duration::from_millis(200))
-                    .open()
-                    .with_context(|| format!("cannot open serial port {path} at {baud} baud"))?;
-                let reader = port.try_clone().with_context(|| format!("cannot clone serial port {path}"))?;
+                let port =
+                    serialport::new(path, baud).timeout(Duration::from_millis(200)).open().map_err(|source| {
+                        LinkError::Serial { what: format!("cannot open serial port {path} at {baud} baud"), source }
+                    })?;
+                let reader = port
+                    .try_clone()
+                    .map_err(|source| LinkError::Serial { what: format!("cannot clone serial port {path}"), source })?;
                 Ok(Self::new(reader, port))
             }
         }
@@ -133,8 +191,8 @@ impl Link {
 
     /// Writes one whole frame.
     pub fn send(&mut self, frame: &[u8]) -> Result<()> {
-        self.tx.write_all(frame).context("writing to the device")?;
-        self.tx.flush().context("writing to the device")?;
+        self.tx.write_all(frame).map_err(io("writing to the device"))?;
+        self.tx.flush().map_err(io("writing to the device"))?;
         self.traffic.sent.fetch_add(frame.len() as u64, Ordering::Relaxed);
         Ok(())
     }
@@ -163,7 +221,7 @@ impl Drop for Link {
 fn connect_tcp(addr: &str, timeout: Duration) -> Result<TcpStream> {
     let started = Instant::now();
     loop {
-        let addrs: Vec<_> = addr.to_socket_addrs().with_context(|| format!("cannot resolve {addr}"))?.collect();
+        let addrs: Vec<_> = addr.to_socket_addrs().map_err(io(format!("cannot resolve {addr}")))?.collect();
         let mut last = None;
         for a in &addrs {
             match TcpStream::connect_timeout(a, Duration::from_secs(2)) {
@@ -173,7 +231,10 @@ fn connect_tcp(addr: &str, timeout: Duration) -> Result<TcpStream> {
         }
         if started.elapsed() >= timeout {
             let e = last.map(|e| e.to_string()).unwrap_or_else(|| "no address".into());
-            bail!("cannot connect to tcp:{addr} within {:.1} s: {e}", timeout.as_secs_f64());
+            return Err(LinkError::Device(format!(
+                "cannot connect to tcp:{addr} within {:.1} s: {e}",
+                timeout.as_secs_f64()
+            )));
         }
         std::thread::sleep(Duration::from_millis(100));
     }

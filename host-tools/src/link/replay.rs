@@ -9,12 +9,12 @@
 //! noisy link. Detections are not repeated by the device: a detection frame damaged on its
 //! way here shows as a gap in the window numbers and is counted as lost.
 
+use super::{refuse, LinkError, Result};
 use super::{Incoming, Link, Progress, Seen, WindowSeq};
 use crate::{
     detections::{WindowRecord, HOST_MAX_EVENTS},
     recording::ReadError,
 };
-use anyhow::{anyhow, bail, Context, Result};
 use evcal_core::{
     detect::DetectConfig,
     event::{Event, InputFilter},
@@ -163,7 +163,11 @@ fn note(
                 Seen::InOrder => {}
                 Seen::AfterLoss(n) => report.windows_lost += u64::from(n),
                 Seen::Restart => {
-                    bail!("window numbers went back (window {} after {}): the device restarted", w.seq, seq.expected())
+                    refuse!(
+                        "window numbers went back (window {} after {}): the device restarted",
+                        w.seq,
+                        seq.expected()
+                    )
                 }
             }
             report.windows += 1;
@@ -173,7 +177,7 @@ fn note(
         Incoming::Stats(s) => report.stats = Some(*s),
         Incoming::Bad(_) => report.frames_bad += 1,
         Incoming::Closed(why) => {
-            bail!("the link closed{}", why.as_ref().map(|w| format!(": {w}")).unwrap_or_default())
+            refuse!("the link closed{}", why.as_ref().map(|w| format!(": {w}")).unwrap_or_default())
         }
         Incoming::Hello(_) | Incoming::Ack(_) => {}
     }
@@ -199,7 +203,7 @@ fn handshake(
         match link.recv(Duration::from_millis(50)) {
             Some(Incoming::Hello(_)) => heard = true,
             Some(Incoming::Closed(why)) => {
-                bail!("the link closed before the device spoke{}", why.map(|w| format!(": {w}")).unwrap_or_default())
+                refuse!("the link closed before the device spoke{}", why.map(|w| format!(": {w}")).unwrap_or_default())
             }
             // Detections or stats of an earlier session: not ours.
             _ => {}
@@ -212,7 +216,9 @@ fn handshake(
         ));
     }
     let mut frame = vec![0u8; 256];
-    let n = Config { session: opts.session, config }.emit(&mut frame).context("encoding the configuration")?;
+    let n = Config { session: opts.session, config }
+        .emit(&mut frame)
+        .map_err(|e| LinkError::Device(format!("encoding the configuration: {e}")))?;
     frame.truncate(n);
     for _ in 0..=opts.max_retries {
         link.send(&frame)?;
@@ -240,7 +246,7 @@ fn handshake(
             }
         }
     }
-    bail!(
+    refuse!(
         "the device did not answer the configuration ({} tries, {:.1} s apart)",
         opts.max_retries + 1,
         opts.retry_timeout.as_secs_f64()
@@ -251,14 +257,14 @@ fn handshake(
 /// of fewer events than asked are accepted when they are all the device holds.
 fn check_hello(h: &Hello, asked: &DetectConfig, window_up_to_device: bool) -> Result<()> {
     if h.reply == HelloReply::Rejected {
-        bail!("the device refused the configuration (a value out of its range): {asked:?}");
+        refuse!("the device refused the configuration (a value out of its range): {asked:?}");
     }
     let events = h.config.window.events;
     let clamped = events < asked.window.events && events as u64 == u64::from(h.max_events);
     let asked =
         &if window_up_to_device && clamped { DetectConfig { window: h.config.window, ..*asked } } else { *asked };
     if h.config.window.events != asked.window.events {
-        bail!(
+        refuse!(
             "the device holds at most {} events per window; {} were asked (use --events-per-window {} or less)",
             h.max_events,
             asked.window.events,
@@ -266,10 +272,10 @@ fn check_hello(h: &Hello, asked: &DetectConfig, window_up_to_device: bool) -> Re
         );
     }
     if h.config != *asked {
-        bail!("the device runs {:?}, not the configuration asked, {asked:?}", h.config);
+        refuse!("the device runs {:?}, not the configuration asked, {asked:?}", h.config);
     }
     if h.max_frame < MIN_FRAME {
-        bail!("the device accepts frames of only {} bytes; at least {MIN_FRAME} are needed", h.max_frame);
+        refuse!("the device accepts frames of only {} bytes; at least {MIN_FRAME} are needed", h.max_frame);
     }
     Ok(())
 }
@@ -348,9 +354,10 @@ fn stream(
             } else {
                 let n = events_that_fit(out.next, &pending, max_frame);
                 if n == 0 {
-                    bail!("an event does not fit in the device's {max_frame}-byte frames");
+                    refuse!("an event does not fit in the device's {max_frame}-byte frames");
                 }
-                let len = emit_events(out.next, &pending[..n], &mut frame).map_err(|e| anyhow!("{e}"))?;
+                let len =
+                    emit_events(out.next, &pending[..n], &mut frame).map_err(|e| LinkError::Device(e.to_string()))?;
                 frame.truncate(len);
                 pending.drain(..n);
                 report.events_sent += n as u64;
@@ -394,7 +401,7 @@ fn stream(
                     }
                 }
                 Incoming::Hello(h) if h.reply == HelloReply::Boot => {
-                    bail!("the device restarted during the replay (it said Hello again)")
+                    refuse!("the device restarted during the replay (it said Hello again)")
                 }
                 other => note(&other, report, seq, on)?,
             }
@@ -426,7 +433,7 @@ fn stream(
         if !out.frames.is_empty() && last_progress.elapsed() >= opts.retry_timeout {
             stalls += 1;
             if stalls > opts.max_retries {
-                bail!(
+                refuse!(
                     "the device stopped acknowledging: no progress in {:.1} s",
                     (opts.retry_timeout * stalls).as_secs_f64()
                 );

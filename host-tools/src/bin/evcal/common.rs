@@ -315,7 +315,7 @@ impl LinkArgs {
         if !(self.connect_timeout.is_finite() && self.connect_timeout >= 0.0) {
             bail!("--connect-timeout must be a non-negative number of seconds");
         }
-        evcal_host::link::Link::open(&port, self.baud, std::time::Duration::from_secs_f64(self.connect_timeout))
+        Ok(evcal_host::link::Link::open(&port, self.baud, std::time::Duration::from_secs_f64(self.connect_timeout))?)
     }
 }
 
