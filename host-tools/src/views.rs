@@ -7,7 +7,6 @@
 //! than with any one reader.
 
 use crate::calib::{Calibration, View};
-use anyhow::{bail, Result};
 
 /// Where one input view came from: the detection window whose grid it is. Indexed like the
 /// views passed to [`calibrate`](crate::calib::calibrate).
@@ -30,16 +29,26 @@ pub struct WindowSample {
     pub grid_found: bool,
 }
 
+/// A calibration that names a view the caller did not hand over with it.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("the calibration used view {view} but only {given} views were given")]
+pub struct MissingView {
+    /// The view the calibration names.
+    pub view: usize,
+    /// How many views were given.
+    pub given: usize,
+}
+
 /// The residuals of every view the calibration used, in the order of `calibration.views`
 /// (see [`Calibration::residuals`]). `views` are the views given to the solver; an error when the
 /// calibration names a view that is not among them.
-pub fn view_residuals(views: &[View], calibration: &Calibration) -> Result<Vec<Vec<[f64; 2]>>> {
+pub fn view_residuals(views: &[View], calibration: &Calibration) -> Result<Vec<Vec<[f64; 2]>>, MissingView> {
     calibration
         .views
         .iter()
         .map(|r| match views.get(r.view) {
             Some(v) => Ok(calibration.residuals(v, r)),
-            None => bail!("the calibration used view {} but only {} views were given", r.view, views.len()),
+            None => Err(MissingView { view: r.view, given: views.len() }),
         })
         .collect()
 }

@@ -6,9 +6,9 @@
 //! rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
 
 use super::RunCounts;
+use super::{ExportError, Result};
 use crate::calib::{Calibration, Intrinsics};
 use crate::views::ViewOrigin;
-use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
 
 /// The JSON result (serialise it with `serde_json`; the field order is the key order).
@@ -120,7 +120,11 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
     let mut per_view = Vec::with_capacity(cal.views.len());
     for v in &cal.views {
         let Some(o) = origins.get(v.view) else {
-            bail!("view {} was used but has no origin (window): {} origins were given", v.view, origins.len());
+            return Err(ExportError::Mismatch(format!(
+                "view {} was used but has no origin (window): {} origins were given",
+                v.view,
+                origins.len()
+            )));
         };
         per_view.push(PerViewJson {
             view: v.view,

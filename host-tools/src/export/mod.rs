@@ -34,8 +34,53 @@ pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, openc
 
 use crate::calib::{Calibration, View};
 use crate::views::{ViewOrigin, WindowSample};
-use anyhow::{Context, Result};
 use std::path::{Path, PathBuf};
+
+/// Why an export could not be written. Every error names the file it concerns, or the
+/// mismatch between the calibration and what was handed over with it.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// A file or directory could not be written.
+    #[error("{}: {what}", path.display())]
+    Io {
+        /// The file or directory.
+        path: PathBuf,
+        /// What could not be done.
+        what: &'static str,
+        /// The system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The report could not be drawn.
+    #[error("{}: cannot draw the report: {message}", path.display())]
+    Report {
+        /// The report's file.
+        path: PathBuf,
+        /// What failed.
+        message: String,
+    },
+    /// A view the calibration used has no origin, or is missing.
+    #[error("{0}")]
+    Mismatch(String),
+    /// The JSON result could not be encoded.
+    #[error("the JSON result: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
+impl From<crate::views::MissingView> for ExportError {
+    fn from(e: crate::views::MissingView) -> Self {
+        Self::Mismatch(e.to_string())
+    }
+}
+
+/// The exports' results.
+pub type Result<T, E = ExportError> = std::result::Result<T, E>;
+
+/// An I/O error about `path`.
+fn io_at(path: &Path, what: &'static str) -> impl FnOnce(std::io::Error) -> ExportError {
+    let path = path.to_path_buf();
+    move |source| ExportError::Io { path, what, source }
+}
 
 /// How much of the recording became views: the JSON result's `windows` and `detections`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -123,7 +168,7 @@ pub const FILE_NAMES: [&str; 5] =
 /// Writes every export into `dir` (made if missing) under the names of [`FILE_NAMES`];
 /// returns the paths and the warnings. Every error names the file it concerns.
 pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
-    std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create the directory", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(io_at(dir, "cannot create the directory"))?;
     let cal = export.calibration;
     let kalibr_cal = export.kalibr_calibration.unwrap_or(cal);
     // Warnings first, so that the JSON carries them too.
@@ -132,7 +177,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     json.edge_shift = export.edge_shift;
     json.calibration_failed = export.failure.map(str::to_owned);
     json.warnings.extend(warnings.iter().cloned());
-    let json = serde_json::to_string_pretty(&json).context("the JSON result")? + "\n";
+    let json = serde_json::to_string_pretty(&json)? + "\n";
 
     let path = |name: &str| dir.join(name);
     let mut written = Written { paths: Vec::with_capacity(FILE_NAMES.len()), warnings };
@@ -145,7 +190,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     }
     for (name, text) in FILE_NAMES.iter().zip(texts) {
         let p = path(name);
-        std::fs::write(&p, text).with_context(|| format!("{}: cannot write", p.display()))?;
+        std::fs::write(&p, text).map_err(io_at(&p, "cannot write"))?;
         written.paths.push(p);
     }
     let p = path(FILE_NAMES[4]);

@@ -5,9 +5,9 @@
 //! - where on the sensor the points were detected, with an 8×6 cell occupancy;
 //! - circle centres per detection window over time, with the windows whose grid was found.
 
+use super::{io_at, ExportError, Result};
 use crate::calib::{Calibration, View};
 use crate::views::{view_residuals, ViewOrigin, WindowSample};
-use anyhow::{anyhow, Context, Result};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
@@ -48,13 +48,13 @@ fn whole(v: &f64) -> String {
     }
 }
 
-fn font_ready() -> Result<()> {
+fn font_ready() -> std::result::Result<(), String> {
     static REGISTERED: OnceLock<bool> = OnceLock::new();
     let ok = *REGISTERED.get_or_init(|| register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
     if ok {
         Ok(())
     } else {
-        Err(anyhow!("the report's built-in font does not load"))
+        Err("the report's built-in font does not load".into())
     }
 }
 
@@ -68,29 +68,35 @@ pub fn write_report(
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
 ) -> Result<()> {
-    let png =
-        render(cal, views, origins, timeline).with_context(|| format!("{}: cannot draw the report", path.display()))?;
-    std::fs::write(path, png).with_context(|| format!("{}: cannot write", path.display()))
+    let png = render(cal, views, origins, timeline)
+        .map_err(|message| ExportError::Report { path: path.to_path_buf(), message })?;
+    std::fs::write(path, png).map_err(io_at(path, "cannot write"))
 }
 
 /// The report as PNG bytes. Drawn into memory, so that a failure leaves no half-drawn file.
-fn render(cal: &Calibration, views: &[View], origins: &[ViewOrigin], timeline: &[WindowSample]) -> Result<Vec<u8>> {
+fn render(
+    cal: &Calibration,
+    views: &[View],
+    origins: &[ViewOrigin],
+    timeline: &[WindowSample],
+) -> std::result::Result<Vec<u8>, String> {
     font_ready()?;
-    let res = view_residuals(views, cal)?;
+    let res = view_residuals(views, cal).map_err(|e| e.to_string())?;
     let (w, h) = REPORT_SIZE;
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        draw(&root, cal, views, &res, origins, timeline).map_err(|e| anyhow!("{e}"))?;
-        root.present().map_err(|e| anyhow!("{e}"))?;
+        draw(&root, cal, views, &res, origins, timeline).map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())?;
     }
     let mut out = Vec::new();
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
-    let mut writer = enc.write_header()?;
-    writer.write_image_data(&rgb)?;
-    writer.finish()?;
+    let png_error = |e: png::EncodingError| format!("encoding the PNG: {e}");
+    let mut writer = enc.write_header().map_err(png_error)?;
+    writer.write_image_data(&rgb).map_err(png_error)?;
+    writer.finish().map_err(png_error)?;
     Ok(out)
 }
 
