@@ -8,11 +8,11 @@
 use crate::calib::{self, CalibError, Calibration, View};
 use crate::detections::WindowRecord;
 use crate::export::{k3_displacement_px, K3_NEGLIGIBLE_PX};
-use crate::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
-use crate::motion::{self, EdgeShift};
-use crate::select::{advice, select_views, Coverage, SelectOptions, Selection};
-use crate::smooth::{smoothed, SmoothOptions, SmoothStats};
-use crate::track::{follow, TrackOptions};
+use crate::views::edge_shift::{self, EdgeShift};
+use crate::views::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
+use crate::views::select::{advice, select_views, Coverage, SelectOptions, Selection};
+use crate::views::smooth::{smoothed, SmoothOptions, SmoothStats};
+use crate::views::track::{follow, TrackOptions};
 use crate::views::{ViewOrigin, WindowSample};
 use std::collections::BTreeMap;
 use std::fmt;
@@ -30,7 +30,7 @@ pub struct Setup {
     /// to take only what the finder labels window by window.
     pub track: Option<TrackOptions>,
     /// How each point's centre is re-estimated from the windows around its view
-    /// ([`crate::smooth`]); `None` to solve on the centres as detected.
+    /// ([`crate::views::smooth`]); `None` to solve on the centres as detected.
     pub smooth: Option<SmoothOptions>,
     /// How views are chosen.
     pub select: SelectOptions,
@@ -40,7 +40,7 @@ pub struct Setup {
     /// out of its view, px: the sensor cut its arc, and a fit to part of a ring is biased.
     pub edge_margin_px: f64,
     /// Measure how far the centres trail their circles along the motion and solve on
-    /// centres moved back by that much ([`motion`]).
+    /// centres moved back by that much ([`edge_shift`]).
     pub edge_shift: bool,
     /// Radius of the board's circles, metres, when known; `None` to estimate it from the
     /// fitted radii ([`Views::circle_radius_m`]). The solve models where each circle's
@@ -75,7 +75,7 @@ pub struct GridStats {
     /// Windows in which the grid was found (by the finder, or followed from the windows
     /// around it).
     pub found: usize,
-    /// Of those, the windows labelled from their neighbours in time ([`crate::track`]).
+    /// Of those, the windows labelled from their neighbours in time ([`crate::views::track`]).
     pub followed: usize,
     /// Of those, the ones holding fewer points than the finder asks of a grid of its own
     /// (see [`Views::partial`]): found, but not solved on.
@@ -120,7 +120,7 @@ pub struct Views {
     /// Per view: its grid was followed from the windows around it and holds fewer points
     /// than the finder asks of a grid of its own ([`FindOptions::min_fraction`]). Such a
     /// view is labelled right (its labels come from its neighbours), and its centres help
-    /// smooth its neighbours' ([`crate::smooth`]), but it is not solved on: these are
+    /// smooth its neighbours' ([`crate::views::smooth`]), but it is not solved on: these are
     /// windows in which part of the board fired too few events (a dim scene), and with them
     /// in the solve fx read 0.03 % longer on every one of seven simulated dim recordings
     /// (DAVIS346 4x11 cone, mean +0.118 % against +0.088 % without them), for no smaller
@@ -366,11 +366,11 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let mut shift_directions = Vec::new();
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
-        let all = motion::directions(&all_views, &views.origins);
+        let all = edge_shift::directions(&all_views, &views.origins);
         let dirs: Vec<Vec<[f64; 2]>> = selection.chosen.iter().map(|&i| all[i].clone()).collect();
-        edge_shift = motion::estimate(&used, &dirs, setup.image_size, &setup.calib);
+        edge_shift = edge_shift::estimate(&used, &dirs, setup.image_size, &setup.calib);
         if let Some(s) = edge_shift {
-            used = motion::shifted(&used, &dirs, s.px);
+            used = edge_shift::shifted(&used, &dirs, s.px);
             shift_directions = dirs;
         }
     }
@@ -427,8 +427,8 @@ fn focal_warning(cal: &Calibration, coverage: &Coverage) -> Option<String> {
     let k = &cal.intrinsics;
     let rel = (cal.std_dev[0] / k.fx.abs()).max(cal.std_dev[1] / k.fy.abs());
     (rel > FOCAL_WARN_RELATIVE).then(|| {
-        let tilt = crate::select::TiltSpread::of(cal);
-        let fix = if tilt.max_deg < crate::select::GOOD_TILT_DEG {
+        let tilt = crate::views::select::TiltSpread::of(cal);
+        let fix = if tilt.max_deg < crate::views::select::GOOD_TILT_DEG {
             format!(
                 "the views tilt the target by at most {:.0}°: with little tilt the focal length is told apart from the distance only by how the image grows as the target comes nearer. Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
                 tilt.max_deg

@@ -226,8 +226,9 @@ fn main() {
         let k = truth.intrinsics();
         let sensor = SensorSize { width: truth.sensor.width, height: truth.sensor.height };
         let windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor);
-        let pattern = evcal_host::grid::Pattern::new(truth.pattern.rows, truth.pattern.cols, truth.pattern.spacing_m)
-            .expect("a valid pattern");
+        let pattern =
+            evcal_host::views::grid::Pattern::new(truth.pattern.rows, truth.pattern.cols, truth.pattern.spacing_m)
+                .expect("a valid pattern");
         let mut setup = Setup::new(pattern, [u32::from(sensor.width), u32::from(sensor.height)]);
         setup.edge_shift = !no_edge_shift;
         if no_smoothing {

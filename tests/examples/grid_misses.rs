@@ -11,9 +11,9 @@
 use evcal_core::event::SensorSize;
 use evcal_host::{
     detections::{default_events_per_window, WindowRecord},
-    grid::{find_grid, Pattern},
     pipeline::Setup,
-    track::{follow_explained, Unfollowed},
+    views::grid::{find_grid, Pattern},
+    views::track::{follow_explained, Unfollowed},
 };
 use evcal_tests::{
     args,

@@ -1,8 +1,8 @@
 //! Command-line pieces the examples share: `--cache DIR` and the simulator's preset names.
 
 use evcal_host::{
-    grid::Pattern,
     sim::{Light, SimConfig, Trajectory},
+    views::grid::Pattern,
 };
 use std::path::PathBuf;
 

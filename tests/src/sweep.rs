@@ -4,9 +4,9 @@
 
 use crate::recorded::Recorded;
 use evcal_host::{
-    grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Setup, FOCAL_WARN_RELATIVE},
     sim::{Light, PixelModel, SimConfig, Trajectory},
+    views::grid::Pattern,
 };
 use std::path::Path;
 

@@ -20,7 +20,7 @@
 //!
 //! In low light a 4000-event window often holds too few events of part of the grid for the
 //! finder to label it; the windows around it label the part that was seen
-//! (`evcal_host::track`), which counts as found but is not solved on. The figures are in
+//! (`evcal_host::views::track`), which counts as found but is not solved on. The figures are in
 //! the closing note.
 
 use evcal_core::event::SensorSize;
@@ -28,9 +28,9 @@ use evcal_host::{
     calib::Intrinsics,
     detections::{self, host_config, WindowRecord},
     eval::{simulate, simulate_windows},
-    grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Setup},
     sim::{FrameTruth, Light, SimConfig, Trajectory},
+    views::grid::Pattern,
 };
 
 /// Length of the simulated recordings, seconds: 360 windows at the paper's 30 per second.

@@ -80,7 +80,7 @@ pub struct Options {
     pub tolerance: f64,
     /// Per view (by index in the views given), per point: the direction along which its
     /// detected centre was moved by a shift estimated from these same views (`dir` times
-    /// the shift; see [`crate::motion`]). The shift then counts as one more parameter in
+    /// the shift; see [`crate::views::edge_shift`]). The shift then counts as one more parameter in
     /// the standard deviations, its uncertainty carried into the intrinsics'
     /// ([`Calibration::shift_std_px`]). Empty, or not one entry per view: no shift.
     pub shift_directions: Vec<Vec<[f64; 2]>>,

@@ -257,7 +257,7 @@ pub(crate) fn solve(
 }
 
 /// A shift of every detected point along a direction of its own, by one amount shared by
-/// all views, that was estimated from these same views (see `crate::motion`): its terms in
+/// all views, that was estimated from these same views (see `crate::views::edge_shift`): its terms in
 /// the normal equations, each pose profiled out. With them the shift counts as one more
 /// parameter of the solve when its uncertainty is carried into the intrinsics'.
 pub(crate) struct ShiftTerms {

@@ -68,7 +68,7 @@ pub struct ResultJson {
     /// How far the detected centres trailed their circles along the motion, and so were
     /// moved forward before the solve (`null`: not measured).
     #[serde(default)]
-    pub edge_shift: Option<crate::motion::EdgeShift>,
+    pub edge_shift: Option<crate::views::edge_shift::EdgeShift>,
     /// The radius of the board's circles the solve modelled (each detected centre compared
     /// with its circle's outline centre), metres; `null`: centres compared with the
     /// projections of the board points.

@@ -116,7 +116,7 @@ pub struct Export<'a> {
     /// writes `asctime`'s form); `None` leaves the entry out.
     pub calibration_time: Option<&'a str>,
     /// The shift taken out of the centres before the solve, for the JSON result.
-    pub edge_shift: Option<crate::motion::EdgeShift>,
+    pub edge_shift: Option<crate::views::edge_shift::EdgeShift>,
     /// Why the result is no calibration ([`crate::pipeline::verdict`]): every file says so
     /// (the JSON's `calibration_failed`, a comment at the top of each YAML file).
     pub failure: Option<&'a str>,

@@ -10,9 +10,9 @@ use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
     detections::{self, WindowRecord},
     export::{write_all, Export},
-    grid::Pattern,
     pipeline::{calibrate_views, views_from_windows, Outcome, PipelineError, Setup, Views},
     recording::parse_sensor,
+    views::grid::Pattern,
 };
 use std::path::{Path, PathBuf};
 

@@ -9,10 +9,10 @@ use evcal_host::{
     calib::Intrinsics,
     detections::{self, WindowRecord},
     eval::{self, ScoreRules},
-    grid::Pattern,
     link::replay::replay_virtual,
     pipeline::Setup,
     sim::{Light, SimConfig, Trajectory},
+    views::grid::Pattern,
 };
 use std::{
     io::{BufWriter, Write},

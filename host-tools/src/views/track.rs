@@ -25,7 +25,7 @@
 
 use crate::calib::fit_homography;
 use crate::detections::WindowRecord;
-use crate::grid::{homography_check, GridDetection, GridPoint, Miss, Pattern};
+use crate::views::grid::{homography_check, GridDetection, GridPoint, Miss, Pattern};
 
 /// How far and how strictly the grid is followed.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -74,7 +74,7 @@ pub struct GridPoint {
 #[derive(Debug, Clone, PartialEq)]
 pub struct GridDetection {
     /// The circles found, by index: from the finder all of them, or a part spanning every
-    /// row and column; followed from the windows around ([`crate::track`]) possibly a
+    /// row and column; followed from the windows around ([`crate::views::track`]) possibly a
     /// smaller part.
     pub points: Vec<GridPoint>,
     /// RMS distance of the points from a homography fitted to them, px (distortion makes

@@ -6,6 +6,12 @@
 //! by the steps after it (smoothing, the edge shift, the exports), so they live here rather
 //! than with any one reader.
 
+pub mod edge_shift;
+pub mod grid;
+pub mod select;
+pub mod smooth;
+pub mod track;
+
 use crate::calib::{Calibration, View};
 
 /// Where one input view came from: the detection window whose grid it is. Indexed like the
