@@ -39,8 +39,8 @@ cargo build "${fw[@]}" --features defmt
 cargo build "${fw[@]}"  # last: the image QEMU boots
 bash scripts/firmware-size.sh "$elf" mps2-an386
 
-step "API documentation, warnings denied (broken links, bad code blocks)"
-RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+step "API documentation, private items too, warnings denied (broken links, bad code blocks)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --document-private-items
 
 step "test data: faery's real recordings (fetched, not committed), Prophesee fixtures as make.py writes them"
 bash scripts/fetch-faery.sh >/dev/null

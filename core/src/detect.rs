@@ -5,13 +5,13 @@
 //! in the `Detector` value, so the firmware can place it in a `static`.
 
 use crate::{
-    arc::{Circle, Moments},
     cluster::sort_by_pixel,
     cluster::{ClusterConfig, ClusterRange, ClusterStats, Clusterer, ColumnTables, TABLE_CELLS},
     config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
     event::{Event, InputFilter, InputStats, SensorSize},
     fit::{fit_in, fit_with, Centre, Extent, FitConfig},
-    math::sqrt,
+    math::sqrt_approx,
+    moments::{Circle, Moments},
     window::{WindowConfig, WindowEvent, WindowInfo, Windower},
 };
 
@@ -459,7 +459,7 @@ fn overlapping(a: &Centre, b: &Centre) -> bool {
 }
 
 /// Weighted spread, px, beyond which a cluster's own fit gives up from its second pass on
-/// (see [`fit_within`]; tighter than [`MAX_SPREAD`](crate::fit::MAX_SPREAD)). A circle's
+/// (see [`fit_within`](crate::fit::fit_within); tighter than [`MAX_SPREAD`](crate::fit::MAX_SPREAD)). A circle's
 /// edge leaves well under a pixel (simulated DAVIS346 cone: no fit that matched a circle
 /// ended beyond 0.88 px), and fragments that join stay within 1.5 px (see
 /// [`JOIN_MAX_PART_SPREAD`]); the fits beyond are clutter, which ran its remaining
@@ -482,7 +482,7 @@ const JOIN_MAX_SPREAD: f32 = 1.0;
 const JOIN_MAX_PART_SPREAD: f32 = 2.0 * JOIN_MAX_SPREAD;
 
 /// Weighted spread, px, beyond which a union's fit gives up from its second pass on (see
-/// [`fit_within`]): the join could not stand. Measured on five simulated recordings (DAVIS346
+/// [`fit_within`](crate::fit::fit_within)): the join could not stand. Measured on five simulated recordings (DAVIS346
 /// cone good and low light, 4x11, and square low light, 3x7; DVXplorer spiral 3x9; 465 union
 /// fits that joined, 111 that failed): a union that joined was within 1.37 px at its second
 /// pass (low light; within 1.01 px on the others), and giving up beyond 1.75 px loses none
@@ -628,7 +628,7 @@ fn recruit<const C: usize>(
                 }
                 let t = e.dt_us as f32 * 1e-3 - t_ref_ms;
                 let (dx, dy) = (f32::from(e.x) - c.u - c.vu * t, f32::from(e.y) - c.v - c.vv * t);
-                if (sqrt(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
+                if (sqrt_approx(dx * dx + dy * dy) - c.r).abs() <= RECRUIT_GATE && k < MAX_RECRUITS {
                     found[k] = *e;
                     k += 1;
                 }
@@ -819,12 +819,15 @@ mod test {
 mod reconfigure_and_hooks {
     use super::*;
     use crate::window::WindowConfig;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     /// Two rings of radius 6 that drift, plus scattered pixels: windows with circles.
     fn events(n: u64, seed: u64) -> Vec<Event> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
         (0..n)
             .map(|i| {
-                let h = (i ^ seed).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> 40;
+                let h = rng.random::<u64>() >> 40;
                 let (cx, cy) =
                     if i % 2 == 0 { (18.0 + i as f32 / 900.0, 16.0) } else { (42.0, 26.0 + i as f32 / 1000.0) };
                 let a = (h % 360) as f32 * core::f32::consts::PI / 180.0;

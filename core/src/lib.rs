@@ -15,7 +15,7 @@
 //! * [`event`]: the event type (integer microseconds, wrap-safe), input validation.
 //! * [`window`]: the windower: the first N events at or after each tick of event time.
 //! * [`cluster`]: DBSCAN (and the spatio-temporal variant) over the sorted pixel grid.
-//! * [`arc`]: power sums of a cluster and the algebraic circle through them, to join the
+//! * [`moments`]: power sums of a cluster and the algebraic circle through them, to join the
 //!   crescents of one circle.
 //! * [`fit`]: eRWLS slanted-cylinder fit of each cluster, giving a circle centre.
 //! * [`detect`]: runs clustering and fitting over one window, in caller-provided memory.
@@ -42,7 +42,6 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
-pub mod arc;
 pub mod cluster;
 pub mod config;
 pub mod detect;
@@ -50,5 +49,6 @@ pub mod event;
 pub mod evt;
 pub mod fit;
 mod math;
+pub mod moments;
 pub mod window;
 pub mod wire;

@@ -5,7 +5,11 @@
 
 use evcal_core::event::Event;
 use evcal_host::recording::{OpenOptions, ReadError, Recording};
-use std::{io::Cursor, path::Path};
+use std::{
+    io::Cursor,
+    path::{Path, PathBuf},
+    sync::OnceLock,
+};
 
 /// Events read at most: a few kB of EVT 3.0 vectors can hold a million events.
 const MAX_EVENTS: usize = 1 << 20;
@@ -29,8 +33,16 @@ pub fn read(name: &str, data: &[u8], compare: bool) {
     if !compare {
         return;
     }
-    let dir = tempfile::tempdir().expect("a temporary folder");
-    let path = dir.path().join(name);
+    // One folder for the whole run, named for the process (scripts/fuzz.sh removes it
+    // afterwards): making and removing one per input was most of an input's time. It sits
+    // on a RAM disk where fuzz.sh finds one.
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    let dir = DIR.get_or_init(|| {
+        let d = std::env::temp_dir().join(format!("evcal-fuzz-{}", std::process::id()));
+        std::fs::create_dir_all(&d).expect("a temporary folder");
+        d
+    });
+    let path = dir.join(name);
     std::fs::write(&path, data).expect("a temporary file");
     let from_file = collect(Recording::open_with(&path, &opts));
     match (&streamed, &from_file) {

@@ -5,9 +5,8 @@
 //! finder's tally), [`calibrate_views`] chooses among them and solves. `evcal calibrate`,
 //! `evcal demo` and the end-to-end tests all go through here.
 
-use crate::calib::{self, CalibError, Calibration, View};
+use crate::calib::{self, k3_displacement_px, CalibError, Calibration, View, K3_NEGLIGIBLE_PX};
 use crate::detections::WindowRecord;
-use crate::export::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 use crate::views::edge_shift::{self, EdgeShift};
 use crate::views::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
 use crate::views::select::{advice, select_views, Coverage, SelectOptions, Selection};

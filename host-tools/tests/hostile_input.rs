@@ -11,6 +11,8 @@ use evcal_host::recording::{
     write_text, OpenOptions, Position, Recording, TimeUnit,
 };
 use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::{
     io::Write,
     path::{Path, PathBuf},
@@ -53,9 +55,10 @@ fn s(p: &Path) -> &str {
 
 fn events(n: u64, sensor: SensorSize, seed: u64) -> Vec<Event> {
     let mut t = 1_000_000 + seed % 1000;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     (0..n)
-        .map(|i| {
-            let k = i.wrapping_mul(2_654_435_761).wrapping_add(seed);
+        .map(|_| {
+            let k = rng.random::<u64>();
             t += k % 40;
             Event {
                 t_us: t,
@@ -250,7 +253,8 @@ fn dat_files_are_checked() {
     let dir = tempfile::tempdir().unwrap();
     // random bytes named .dat (before: 1000 events, a 16k x 16k sensor, exit 0)
     let p = dir.path().join("random.dat");
-    let bytes: Vec<u8> = (0..8000u32).map(|i| (i.wrapping_mul(2_654_435_761) >> 13) as u8).collect();
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let bytes: Vec<u8> = (0..8000).map(|_| rng.random::<u8>()).collect();
     std::fs::write(&p, &bytes).unwrap();
     let (code, _, err) = evcal(&["info", s(&p)]);
     assert_eq!(code, Some(1), "{err}");

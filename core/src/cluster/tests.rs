@@ -3,6 +3,8 @@
 use super::{tables::Tables, *};
 use crate::{event::SensorSize, window::WindowEvent};
 use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use std::vec::Vec;
 
 /// Textbook DBSCAN, O(n^2), breadth-first expansion: the reference the hashed version
@@ -46,11 +48,10 @@ fn brute_force(events: &[WindowEvent], sensor: SensorSize, cfg: &ClusterConfig) 
 }
 
 fn ring(cx: f32, cy: f32, r: f32, k: usize, t0: u32, seed: u32) -> Vec<WindowEvent> {
-    let mut s = seed;
+    let mut rng = ChaCha8Rng::seed_from_u64(u64::from(seed));
     (0..k)
         .map(|i| {
-            s = s.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            let a = i as f32 * 0.37 + (s >> 8) as f32 * 1e-7;
+            let a = i as f32 * 0.37 + rng.random_range(0.0..1.6f32);
             WindowEvent {
                 x: (cx + r * libm::cosf(a)).round() as u16,
                 y: (cy + r * libm::sinf(a)).round() as u16,

@@ -8,8 +8,8 @@ use super::{
     pass::{weigh, MAX_WEIGHT_EXPONENT, RECORD},
 };
 use crate::{
-    arc::solve_spd,
-    math::{exp_neg, sqrt},
+    math::{exp_neg, sqrt_approx},
+    moments::solve_spd,
 };
 
 /// What the ellipse (see [`ellipse_offset`]) needs of a fit's last pass: its parameters,
@@ -210,7 +210,7 @@ fn ellipse_centre(s: [f32; 20], r: f32) -> Option<[f32; 2]> {
     let c = 1.0 - a;
     // Eigenvalues of the quadratic part [[a, b/2], [b/2, c]]: both positive for an ellipse.
     let det = 4.0 * a * c - bxy * bxy;
-    let half_gap = 0.5 * sqrt((a - c) * (a - c) + bxy * bxy);
+    let half_gap = 0.5 * sqrt_approx((a - c) * (a - c) + bxy * bxy);
     let (lo, hi) = (0.5 * (a + c) - half_gap, 0.5 * (a + c) + half_gap);
     if !(det > 0.0 && lo > MIN_ELLIPSE_AXIS_RATIO_SQ * hi) {
         return None;

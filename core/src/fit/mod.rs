@@ -38,8 +38,8 @@ use self::{
 };
 pub(crate) use self::{cylinder::MAX_SPREAD, frame::Extent};
 use crate::{
-    arc::{Circle, Moments},
     math::max,
+    moments::{Circle, Moments},
     window::WindowEvent,
 };
 

@@ -503,6 +503,8 @@ fn valid(c: &DetectConfig) -> bool {
 mod test {
     use super::*;
     use crate::wire::{detection_frame_max, emit_events, events_that_fit, DeviceMessage, End};
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
     use std::vec::Vec;
 
     const TXS: usize = detection_frame_max(16);
@@ -515,13 +517,10 @@ mod test {
         c
     }
 
-    /// Events of a few moving circles and some noise, from a fixed LCG.
+    /// Events of a few moving circles and some noise, from a seeded generator.
     fn scene(n: usize) -> Vec<Event> {
-        let mut s = 12345u64;
-        let mut rnd = move || {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (s >> 33) as u32
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(12345);
+        let mut rnd = move || rng.random::<u32>();
         (0..n as u64)
             .map(|i| {
                 let t_us = i * 4 + u64::from(rnd() % 3);

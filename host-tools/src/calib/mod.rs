@@ -21,9 +21,11 @@
 //! weighted (Huber) when `robust` is on.
 
 mod init;
+mod k3;
 mod model;
 mod solve;
 
+pub use k3::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 pub use model::{outline_offset, Intrinsics, Pose, PARAMETER_NAMES};
 
 use nalgebra::{Rotation3, Vector3};

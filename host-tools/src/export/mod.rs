@@ -30,7 +30,7 @@ mod yaml;
 
 pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
 pub use report::{write_report, REPORT_SIZE};
-pub use yaml::{camera_info_yaml, k3_displacement_px, kalibr_camchain_yaml, opencv_yaml, K3_NEGLIGIBLE_PX};
+pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
 
 use crate::calib::{Calibration, View};
 use crate::views::{ViewOrigin, WindowSample};

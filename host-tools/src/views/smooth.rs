@@ -134,6 +134,8 @@ pub fn smoothed(views: &[View], origins: &[ViewOrigin], opts: &SmoothOptions) ->
 #[cfg(test)]
 mod test {
     use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn origin(k: usize) -> ViewOrigin {
         ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }
@@ -144,12 +146,9 @@ mod test {
     #[test]
     fn noise_drops_on_a_curved_path() {
         let path = |t: f64| [100.0 + 150.0 * t + 400.0 * t * t, 80.0 - 90.0 * t + 200.0 * t * t];
-        let mut seed = 7u64;
-        let mut noise = || {
-            // Uniform in ±0.35 px (σ 0.2).
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.7
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        // Uniform in ±0.35 px (σ 0.2).
+        let mut noise = || rng.random_range(-0.35..0.35);
         let n = 200;
         let origins: Vec<ViewOrigin> = (0..n).map(origin).collect();
         let views: Vec<View> = origins

@@ -367,6 +367,8 @@ fn follow_one(
 mod test {
     use super::*;
     use crate::detections::CenterRecord;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     /// A 4x11 grid seen flat: board metres to pixels, moved by `shift` px.
     fn shot(pattern: &Pattern, shift: [f64; 2]) -> Vec<[f64; 2]> {
@@ -586,13 +588,8 @@ mod test {
                         .collect()
                 })
                 .collect();
-            let mut rng = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-            let mut uniform = move || {
-                rng ^= rng << 13;
-                rng ^= rng >> 7;
-                rng ^= rng << 17;
-                (rng >> 11) as f64 / (1u64 << 53) as f64
-            };
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let mut uniform = move || rng.random::<f64>();
             let windows: Vec<WindowRecord> = truth
                 .iter()
                 .zip(&losses)

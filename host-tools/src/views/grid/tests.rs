@@ -3,6 +3,8 @@
 
 use super::*;
 use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 /// A camera looking at the board: rotation about the optical axis `roll`, then tilts
 /// about the board's x and y axes, the board's middle at `distance` metres.
@@ -50,13 +52,8 @@ fn centre(p: [f64; 2], r: f64) -> CenterRecord {
 /// The centres of a shot, each with its true index (`None`: clutter), noise `noise` px
 /// from a fixed generator.
 fn shoot(pattern: &Pattern, shot: &Shot, noise: f64, seed: u64) -> Vec<(CenterRecord, Option<usize>)> {
-    let mut rng = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
-    let mut next = move || {
-        rng ^= rng << 13;
-        rng ^= rng >> 7;
-        rng ^= rng << 17;
-        (rng >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-    };
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut next = move || rng.random::<f64>() - 0.5;
     (0..pattern.len())
         .map(|k| {
             let o = pattern.object_point(k);
