@@ -4,7 +4,7 @@
 // as the file: what the peek buffer saw while choosing the format is never lost.
 
 use evcal_core::event::Event;
-use evcal_host::recording::{OpenOptions, ReadError, Recording};
+use evcal_host::input::recording::{OpenOptions, ReadError, Recording};
 use std::{
     io::Cursor,
     path::{Path, PathBuf},

@@ -10,7 +10,7 @@ use evcal_core::{
     event::Event,
     evt::{Decoder, Encoding, Evt21Order},
 };
-use evcal_host::recording::prophesee::{write::encode_evt, Header};
+use evcal_host::input::recording::prophesee::{write::encode_evt, Header};
 use std::hint::black_box;
 
 /// Decodes all of `body` through a 4096-event output; returns the events.

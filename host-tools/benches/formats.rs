@@ -7,7 +7,7 @@
 //! dominates). The faery DAVIS346 recording is added when fetched (scripts/fetch-faery.sh).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use evcal_host::recording::Recording;
+use evcal_host::input::recording::Recording;
 use std::path::{Path, PathBuf};
 
 fn count(path: &Path) -> u64 {

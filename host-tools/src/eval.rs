@@ -1,7 +1,7 @@
 //! Scoring detections against simulated ground truth: centre errors and how often each true
 //! circle is found.
 
-use crate::detections::WindowRecord;
+use crate::input::detections::WindowRecord;
 use serde::Serialize;
 
 /// A true circle in one window, as the simulator knows it.
@@ -154,7 +154,8 @@ pub fn detect_with_truth(
     det_cfg: evcal_core::detect::DetectConfig,
     mut each: impl FnMut(&WindowRecord, &crate::sim::FrameTruth),
 ) {
-    let mut det: Box<crate::detections::HostDetector> = Box::new(crate::detections::HostDetector::new(det_cfg));
+    let mut det: Box<crate::input::detections::HostDetector> =
+        Box::new(crate::input::detections::HostDetector::new(det_cfg));
     for e in events {
         if let Some(d) = det.push(*e) {
             let r = WindowRecord::from_detection(d);
@@ -186,7 +187,7 @@ pub fn true_circles(t: &crate::sim::FrameTruth) -> Vec<TrueCircle> {
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::detections::CenterRecord;
+    use crate::input::detections::CenterRecord;
 
     fn c(u: f32, v: f32) -> CenterRecord {
         CenterRecord { u, v, r: 6.0, spread: 0.1, n: 50, converged: true }

@@ -4,11 +4,9 @@
 #![deny(missing_docs)]
 
 pub mod calib;
-pub mod detections;
 pub mod eval;
 pub mod export;
-pub mod link;
+pub mod input;
 pub mod pipeline;
-pub mod recording;
 pub mod sim;
 pub mod views;

@@ -6,7 +6,7 @@
 //! `evcal demo` and the end-to-end tests all go through here.
 
 use crate::calib::{self, k3_displacement_px, CalibError, Calibration, View, K3_NEGLIGIBLE_PX};
-use crate::detections::WindowRecord;
+use crate::input::detections::WindowRecord;
 use crate::views::edge_shift::{self, EdgeShift};
 use crate::views::grid::{find_grid, FindOptions, GridDetection, Miss, Pattern};
 use crate::views::select::{advice, select_views, Coverage, SelectOptions, Selection};
@@ -474,7 +474,7 @@ pub fn verdict(cal: &Calibration) -> Option<String> {
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::detections::CenterRecord;
+    use crate::input::detections::CenterRecord;
 
     /// Windows whose centres are a pattern's circles seen head-on (plus one stray), moved a
     /// little per window.

@@ -10,8 +10,8 @@ use evcal_core::{
     evt::Encoding,
 };
 use evcal_host::{
-    detections::{CenterRecord, WindowRecord},
-    recording::{prophesee::write::write_raw, write_text},
+    input::detections::{CenterRecord, WindowRecord},
+    input::recording::{prophesee::write::write_raw, write_text},
     sim::{Light, SimConfig, Simulator, Trajectory},
 };
 use std::{

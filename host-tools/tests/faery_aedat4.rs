@@ -9,7 +9,7 @@
 //! passes, unless `EVCAL_REQUIRE_TEST_DATA=1` (set by `scripts/test.sh`) makes that a failure.
 
 use evcal_core::event::SensorSize;
-use evcal_host::recording::{Format, Recording};
+use evcal_host::input::recording::{Format, Recording};
 use sha3::{Digest, Sha3_224};
 use std::path::PathBuf;
 

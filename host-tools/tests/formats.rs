@@ -6,7 +6,7 @@
 //! (scripts/test.sh makes one with the writers installed by scripts/setup.sh).
 
 use evcal_core::event::{Event, SensorSize};
-use evcal_host::recording::{Format, OpenOptions, Position, ReadError, Recording, TimeUnit};
+use evcal_host::input::recording::{Format, OpenOptions, Position, ReadError, Recording, TimeUnit};
 use std::path::PathBuf;
 
 fn dir() -> PathBuf {

@@ -6,7 +6,7 @@ use evcal_core::{
     event::{Event, SensorSize},
     evt::{Encoding, Evt21Order},
 };
-use evcal_host::recording::{
+use evcal_host::input::recording::{
     prophesee::write::{write_dat, write_raw},
     write_text, OpenOptions, Position, Recording, TimeUnit,
 };

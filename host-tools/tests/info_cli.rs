@@ -5,7 +5,7 @@ use evcal_core::{
     event::{Event, SensorSize},
     evt::Encoding,
 };
-use evcal_host::recording::prophesee::write::write_raw;
+use evcal_host::input::recording::prophesee::write::write_raw;
 use std::process::Command;
 
 #[test]

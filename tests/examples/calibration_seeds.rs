@@ -15,7 +15,7 @@
 
 use evcal_core::event::SensorSize;
 use evcal_host::{
-    detections::default_events_per_window,
+    input::detections::default_events_per_window,
     pipeline::{calibrate_views, views_from_windows, Setup},
 };
 use evcal_tests::{args, recorded::Recorded};

@@ -15,9 +15,9 @@
 use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
-    detections::{self, read_jsonl, WindowRecord},
+    input::detections::{self, read_jsonl, WindowRecord},
+    input::recording::Recording,
     pipeline::{calibrate_views, views_from_windows, Outcome, Setup},
-    recording::Recording,
 };
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;

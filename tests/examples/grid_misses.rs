@@ -10,7 +10,7 @@
 
 use evcal_core::event::SensorSize;
 use evcal_host::{
-    detections::{default_events_per_window, WindowRecord},
+    input::detections::{default_events_per_window, WindowRecord},
     pipeline::Setup,
     views::grid::{find_grid, Pattern},
     views::track::{follow_explained, Unfollowed},
@@ -44,7 +44,7 @@ fn main() {
         truths[k]
             .iter()
             .filter(|t| {
-                let d = |c: &evcal_host::detections::CenterRecord| {
+                let d = |c: &evcal_host::input::detections::CenterRecord| {
                     (f64::from(c.u) - t.centre[0]).hypot(f64::from(c.v) - t.centre[1])
                 };
                 windows[k].centers.iter().any(|c| d(c) < 1.5)

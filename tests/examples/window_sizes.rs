@@ -1,7 +1,7 @@
 //! How the number of events per window shapes detection and calibration on one simulated
 //! scenario: for each window size, a windowed simulation (`eval::simulate_windows`, only the
 //! milliseconds each window needs), the core, the grid finder and the solve, against the
-//! truth. What the host's default window size (`evcal_host::detections::default_events_per_window`)
+//! truth. What the host's default window size (`evcal_host::input::detections::default_events_per_window`)
 //! was chosen from.
 //!
 //! `cargo run --release -p evcal-tests --example window_sizes -- dvxplorer 4x11 cone good 8 1 4000 8000 16000`
@@ -15,8 +15,8 @@
 
 use evcal_core::{detect::DetectConfig, event::SensorSize, window::WindowConfig};
 use evcal_host::{
-    detections::{self, default_events_per_window, WindowRecord, HOST_MAX_EVENTS},
     eval::{simulate_windows, true_circles, Score, ScoreRules},
+    input::detections::{self, default_events_per_window, WindowRecord, HOST_MAX_EVENTS},
     pipeline::{calibrate_views, views_from_windows, Setup},
 };
 use evcal_tests::args;

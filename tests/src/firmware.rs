@@ -10,7 +10,7 @@ use evcal_core::{
     event::{Event, SensorSize},
 };
 use evcal_firmware::bulk;
-use evcal_host::detections::HostDetector;
+use evcal_host::input::detections::HostDetector;
 use std::{
     io::{BufWriter, Write},
     path::{Path, PathBuf},

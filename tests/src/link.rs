@@ -13,7 +13,7 @@ use evcal_core::{
         Hello, HelloReply, Stats,
     },
 };
-use evcal_host::detections::{HostDetector, WindowRecord};
+use evcal_host::input::detections::{HostDetector, WindowRecord};
 use std::{
     collections::BTreeSet,
     io::{ErrorKind, Read, Write},

@@ -4,8 +4,8 @@
 
 use evcal_core::event::SensorSize;
 use evcal_host::{
-    detections::{self, WindowRecord},
     eval::{simulate, simulate_windows},
+    input::detections::{self, WindowRecord},
     sim::SimConfig,
 };
 use serde::{Deserialize, Serialize};

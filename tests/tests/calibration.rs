@@ -26,8 +26,8 @@
 use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::Intrinsics,
-    detections::{self, host_config, WindowRecord},
     eval::{simulate, simulate_windows},
+    input::detections::{self, host_config, WindowRecord},
     pipeline::{calibrate_views, views_from_windows, Setup},
     sim::{FrameTruth, Light, SimConfig, Trajectory},
     views::grid::Pattern,

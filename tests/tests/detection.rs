@@ -16,8 +16,8 @@ use evcal_core::{
     window::WindowConfig,
 };
 use evcal_host::{
-    detections::{HostDetector, WindowRecord},
     eval::{score, simulate, true_circles, Score, ScoreRules},
+    input::detections::{HostDetector, WindowRecord},
     sim::{Light, SimConfig, Simulator, Trajectory},
 };
 use std::sync::OnceLock;

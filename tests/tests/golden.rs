@@ -4,8 +4,8 @@
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
-    detections::{self, WindowRecord},
     eval::simulate,
+    input::detections::{self, WindowRecord},
     sim::{Light, SimConfig, Trajectory},
 };
 use evcal_tests::{firmware, golden};

@@ -8,9 +8,9 @@ use evcal_core::{
     wire::{emit_core_detection, emit_events, events_that_fit},
 };
 use evcal_host::{
-    detections::{self, WindowRecord},
     eval::simulate,
-    link::{
+    input::detections::{self, WindowRecord},
+    input::link::{
         fault::{describe, FrameKind, FrameTap},
         replay::{replay, ReplayOptions, ReplayReport, WindowedEvents},
         virtual_device::{self, PipeWriter},

@@ -4,7 +4,7 @@
 //! size, and the time range.
 
 use evcal_core::event::Event;
-use evcal_host::recording::{Format, Recording};
+use evcal_host::input::recording::{Format, Recording};
 use evcal_tests::faery::{asset, data_dir, Asset};
 use sha3::{Digest, Sha3_224};
 use std::path::Path;

@@ -24,7 +24,7 @@
 //! finder missed).
 
 use crate::calib::fit_homography;
-use crate::detections::WindowRecord;
+use crate::input::detections::WindowRecord;
 use crate::views::grid::{homography_check, GridDetection, GridPoint, Miss, Pattern};
 
 /// How far and how strictly the grid is followed.
@@ -366,7 +366,7 @@ fn follow_one(
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::detections::CenterRecord;
+    use crate::input::detections::CenterRecord;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 

@@ -8,10 +8,10 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
-    detections::{self, WindowRecord},
     export::{write_all, Export},
+    input::detections::{self, WindowRecord},
+    input::recording::parse_sensor,
     pipeline::{calibrate_views, views_from_windows, Outcome, PipelineError, Setup, Views},
-    recording::parse_sensor,
     views::grid::Pattern,
 };
 use std::path::{Path, PathBuf};

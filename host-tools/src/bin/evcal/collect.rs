@@ -3,7 +3,7 @@
 use crate::common::{check_writable, output, spinner, stop_on_ctrl_c, LinkArgs};
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use evcal_host::link::{
+use evcal_host::input::link::{
     collect::{collect, CollectLimits, CollectReport},
     Progress,
 };

@@ -11,8 +11,8 @@ use evcal_core::{
     window::WindowConfig,
 };
 use evcal_host::{
-    detections,
-    recording::{guess_sensor, parse_sensor, OpenOptions, Recording, TimeUnit},
+    input::detections,
+    input::recording::{guess_sensor, parse_sensor, OpenOptions, Recording, TimeUnit},
     sim::{FrameTruth, SimConfig, Simulator},
 };
 use indicatif::{ProgressBar, ProgressStyle};
@@ -310,12 +310,16 @@ pub struct LinkArgs {
 }
 
 impl LinkArgs {
-    pub fn open(&self) -> Result<evcal_host::link::Link> {
-        let port = evcal_host::link::Port::parse(&self.port)?;
+    pub fn open(&self) -> Result<evcal_host::input::link::Link> {
+        let port = evcal_host::input::link::Port::parse(&self.port)?;
         if !(self.connect_timeout.is_finite() && self.connect_timeout >= 0.0) {
             bail!("--connect-timeout must be a non-negative number of seconds");
         }
-        Ok(evcal_host::link::Link::open(&port, self.baud, std::time::Duration::from_secs_f64(self.connect_timeout))?)
+        Ok(evcal_host::input::link::Link::open(
+            &port,
+            self.baud,
+            std::time::Duration::from_secs_f64(self.connect_timeout),
+        )?)
     }
 }
 
@@ -442,7 +446,7 @@ pub fn with_position<'a>(
     rec: &'a mut Recording,
     every: u64,
     position: &'a std::cell::Cell<u64>,
-) -> impl Iterator<Item = Result<evcal_core::event::Event, evcal_host::recording::ReadError>> + 'a {
+) -> impl Iterator<Item = Result<evcal_core::event::Event, evcal_host::input::recording::ReadError>> + 'a {
     let mut counter = 0u64;
     std::iter::from_fn(move || {
         let e = rec.next();

@@ -7,9 +7,9 @@ use clap::Args;
 use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::Intrinsics,
-    detections::{self, WindowRecord},
     eval::{self, ScoreRules},
-    link::replay::replay_virtual,
+    input::detections::{self, WindowRecord},
+    input::link::replay::replay_virtual,
     pipeline::Setup,
     sim::{Light, SimConfig, Trajectory},
     views::grid::Pattern,

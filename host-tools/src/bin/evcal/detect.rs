@@ -5,7 +5,7 @@ use crate::common::{
 };
 use anyhow::{Context, Result};
 use clap::Args;
-use evcal_host::detections::{self, WindowRecord};
+use evcal_host::input::detections::{self, WindowRecord};
 use std::{cell::Cell, path::PathBuf};
 
 #[derive(Args)]

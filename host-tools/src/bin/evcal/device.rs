@@ -3,7 +3,7 @@
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_core::wire::default_config;
-use evcal_host::{link::virtual_device::serve_tcp, recording::parse_sensor};
+use evcal_host::{input::link::virtual_device::serve_tcp, input::recording::parse_sensor};
 use std::net::TcpListener;
 
 #[derive(Args)]

@@ -5,7 +5,7 @@ use crate::common::{outln, progress_bar, ReadArgs};
 use anyhow::Result;
 use clap::Args;
 use evcal_core::event::SensorSize;
-use evcal_host::recording::{guess_sensor, ReadError, Recording};
+use evcal_host::input::recording::{guess_sensor, ReadError, Recording};
 use std::path::PathBuf;
 
 #[derive(Args)]

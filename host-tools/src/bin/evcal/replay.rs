@@ -5,7 +5,7 @@ use crate::common::{
 };
 use anyhow::{bail, Context, Result};
 use clap::Args;
-use evcal_host::link::{
+use evcal_host::input::link::{
     replay::{replay, ReplayOptions, ReplayReport},
     Progress,
 };

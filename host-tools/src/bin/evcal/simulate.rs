@@ -5,8 +5,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_core::{event::SensorSize, window::WindowConfig};
 use evcal_host::{
-    detections,
-    recording::{write_ecalib_h5, write_text},
+    input::detections,
+    input::recording::{write_ecalib_h5, write_text},
     sim::{Camera, Light, PixelModel, SimConfig, Trajectory},
 };
 use std::path::{Path, PathBuf};

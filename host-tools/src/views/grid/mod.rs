@@ -51,7 +51,7 @@ pub(crate) use checks::homography_check;
 pub use pattern::{Pattern, MAX_PATTERN_SIDE};
 pub use placement::MAX_STRAYS;
 
-use crate::detections::CenterRecord;
+use crate::input::detections::CenterRecord;
 use checks::check_smooth;
 use consistency::consistent;
 use lattice::{grow, seeds, Cell};

@@ -471,7 +471,7 @@ fn guess_from(head: &[i64], last: i64) -> (TimeUnit, String) {
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::recording::Recording;
+    use crate::input::recording::Recording;
 
     #[test]
     fn units_parse_and_convert() {
@@ -549,7 +549,8 @@ mod test {
         assert_eq!(ev[2].t_us, 9_400_000);
 
         // the option overrides
-        let opts = crate::recording::OpenOptions { time_unit: Some(TimeUnit::Nanoseconds), ..Default::default() };
+        let opts =
+            crate::input::recording::OpenOptions { time_unit: Some(TimeUnit::Nanoseconds), ..Default::default() };
         let ev: Vec<Event> = Recording::open_with(&b, &opts).unwrap().map(Result::unwrap).collect();
         assert_eq!(ev[2].t_us, 9);
 

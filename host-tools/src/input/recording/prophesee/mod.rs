@@ -168,7 +168,7 @@ pub fn sniff_evt21_order(body: &[u8]) -> Option<Evt21Order> {
 /// Peeks at `input` until its `%` header has ended (with some bytes of data after it, for
 /// [`sniff_evt21_order`]), the input has ended, or [`MAX_HEADER`] bytes: a live stream is not
 /// held up for a megabyte, a short file costs its size.
-pub(crate) fn peek_header(input: &mut crate::recording::input::Input) -> Result<(), ReadError> {
+pub(crate) fn peek_header(input: &mut crate::input::recording::bytes::Input) -> Result<(), ReadError> {
     let mut want = 1 << 16;
     loop {
         let got = input.peek(want)?.len();

@@ -17,7 +17,7 @@ pub mod fault;
 pub mod replay;
 pub mod virtual_device;
 
-use crate::detections::WindowRecord;
+use crate::input::detections::WindowRecord;
 use evcal_core::wire::{self, DeviceMessage, Feed, FrameAccumulator, Hello, Stats};
 use std::{
     io::{ErrorKind, Read, Write},
@@ -73,7 +73,7 @@ impl From<wire::Error> for LinkError {
 /// Returns a [`LinkError::Device`] with a formatted message.
 macro_rules! refuse {
     ($($arg:tt)*) => {
-        return Err($crate::link::LinkError::Device(format!($($arg)*)))
+        return Err($crate::input::link::LinkError::Device(format!($($arg)*)))
     };
 }
 pub(crate) use refuse;

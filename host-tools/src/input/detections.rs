@@ -8,7 +8,7 @@
 //! they came over a link from a device or from the core run here, so `evcal detect` and a
 //! device replaying the same recording print the same bytes.
 
-use crate::recording::ReadError;
+use crate::input::recording::ReadError;
 use evcal_core::{
     config::{DEFAULT_EVENTS_PER_WINDOW, MAX_CLUSTERS},
     detect::{DetectConfig, Detection, Detector},
@@ -240,7 +240,7 @@ fn parse_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<(usize, WindowRec
                 line: i,
                 message: format!(
                     "longer than {MAX_DETECTIONS_LINE} bytes; it starts \"{}\"",
-                    crate::recording::quote(&line, 40)
+                    crate::input::recording::quote(&line, 40)
                 ),
             });
         }
@@ -249,7 +249,7 @@ fn parse_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<(usize, WindowRec
             message: format!(
                 "not UTF-8 at byte {}; it starts \"{}\"",
                 e.valid_up_to() + 1,
-                crate::recording::quote(&line, 40)
+                crate::input::recording::quote(&line, 40)
             ),
         })?;
         if i == 1 {
@@ -260,7 +260,7 @@ fn parse_jsonl(mut input: impl std::io::BufRead) -> Result<Vec<(usize, WindowRec
         }
         let r: WindowRecord = serde_json::from_str(text).map_err(|e| ReadDetectionsError::Line {
             line: i,
-            message: format!("{e}; it starts \"{}\"", crate::recording::quote(text.trim().as_bytes(), 40)),
+            message: format!("{e}; it starts \"{}\"", crate::input::recording::quote(text.trim().as_bytes(), 40)),
         })?;
         out.push((i, r));
     }

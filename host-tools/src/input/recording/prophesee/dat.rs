@@ -4,8 +4,8 @@
 //! u32 with x in bits 0..14, y in bits 14..28 and the polarity in bit 28.
 
 use super::{Header, Position, ReadError};
-use crate::recording::{
-    input::{read_up_to, Input},
+use crate::input::recording::{
+    bytes::{read_up_to, Input},
     EventSource,
 };
 use evcal_core::event::{Event, SensorSize, TimeUnwrapper};
@@ -68,7 +68,7 @@ impl DatReader {
         // other bytes (random data reads as plausible events), so it is refused.
         // An empty file holds nothing to misread: no events.
         if header.fields.is_empty() && !head.is_empty() {
-            let what = format!("it starts \"{}\"", crate::recording::input::quote(head, 16));
+            let what = format!("it starts \"{}\"", crate::input::recording::bytes::quote(head, 16));
             return Err(at(
                 0,
                 format!(

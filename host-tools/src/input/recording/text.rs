@@ -10,7 +10,7 @@
 //! stream of NUL bytes) ends the read with an error quoting its start, in constant memory.
 
 use super::{
-    input::{quote, Input},
+    bytes::{quote, Input},
     EventSource, Position, ReadError, TimeUnit,
 };
 use evcal_core::event::{Event, SensorSize};
@@ -365,7 +365,7 @@ pub fn write_text(path: &Path, sensor: Option<SensorSize>, events: &[Event]) -> 
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::recording::Recording;
+    use crate::input::recording::Recording;
 
     #[test]
     fn seconds_are_exact() {

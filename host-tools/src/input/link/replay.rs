@@ -12,8 +12,8 @@
 use super::{refuse, LinkError, Result};
 use super::{Incoming, Link, Progress, Seen, WindowSeq};
 use crate::{
-    detections::{WindowRecord, HOST_MAX_EVENTS},
-    recording::ReadError,
+    input::detections::{WindowRecord, HOST_MAX_EVENTS},
+    input::recording::ReadError,
 };
 use evcal_core::{
     detect::DetectConfig,
@@ -572,7 +572,11 @@ mod test {
         let cfg = DetectConfig::new(SensorSize::DAVIS346);
         let input = vec![
             Ok(Event { t_us: 0, x: 1, y: 1, polarity: true }),
-            Err(ReadError::new(std::path::Path::new("rec.txt"), crate::recording::Position::Line(2), "not a number")),
+            Err(ReadError::new(
+                std::path::Path::new("rec.txt"),
+                crate::input::recording::Position::Line(2),
+                "not a number",
+            )),
         ];
         let mut w = WindowedEvents::new(input.into_iter(), cfg, false);
         assert!(matches!(w.next(), Some(Ok(_))));

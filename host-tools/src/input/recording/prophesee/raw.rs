@@ -2,7 +2,7 @@
 //! by `evcal_core::evt` (constant memory whatever the file's size).
 
 use super::{Header, Position, ReadError};
-use crate::recording::{input::Input, EventSource};
+use crate::input::recording::{bytes::Input, EventSource};
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Decoder, Encoding, Evt21Order},

@@ -143,7 +143,7 @@ pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
 #[cfg(test)]
 mod test {
     use super::*;
-    use crate::recording::{Format, Recording};
+    use crate::input::recording::{Format, Recording};
 
     #[test]
     fn round_trip_and_errors() {

@@ -109,7 +109,7 @@ impl Aedat4Reader {
         let mut file = BufReader::with_capacity(1 << 16, f);
 
         let mut magic = [0u8; 18];
-        let got = super::input::read_up_to(&mut file, &mut magic).map_err(|e| ReadError::io(path, e))?;
+        let got = super::bytes::read_up_to(&mut file, &mut magic).map_err(|e| ReadError::io(path, e))?;
         if got < MAGIC.len() || magic[..MAGIC.len()] != MAGIC[..] {
             let start = String::from_utf8_lossy(&magic[..got.min(14)]).trim_end().to_string();
             let what = if got == 0 {

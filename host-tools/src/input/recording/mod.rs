@@ -7,26 +7,26 @@
 
 mod aedat4;
 mod bag;
+mod bytes;
 mod codec;
 mod flatbuf;
 mod h5;
 mod h5cols;
-mod input;
 pub mod prophesee;
 mod text;
 
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
+pub use bytes::{quote, STDIN_NAME};
 pub use h5::{write_ecalib_h5, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
-pub use input::{quote, STDIN_NAME};
 pub use text::{write_text, TextReader, MAX_LINE};
 
+use bytes::{Input, TeeHandle};
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Encoding, Evt21Order},
 };
-use input::{Input, TeeHandle};
 use std::{
     fmt,
     path::{Path, PathBuf},
