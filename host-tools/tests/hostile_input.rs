@@ -597,3 +597,34 @@ fn calibrate_reads_a_fifo_as_it_reads_the_file() {
         assert!(!file[key].is_null(), "{key} missing: {file}");
     }
 }
+
+#[test]
+fn a_blosc_chunk_claiming_more_bytes_than_it_has_is_refused() {
+    // c-blosc trusts the compressed size in a chunk's own header; HDF5's Blosc filter as the
+    // hdf5 crate registers it passed that on unchecked, and a header claiming more than the
+    // chunk holds made the decoder read past the buffer (found by the read_h5 fuzz target).
+    // Here the first chunk of the DSEC fixture (Blosc-zstd) claims 100 bytes more than it has.
+    let mut bytes = std::fs::read(fixture("dsec.h5")).unwrap();
+    let header = |b: &[u8], i: usize| {
+        let w = |k: usize| u32::from_le_bytes(b[i + k..i + k + 4].try_into().unwrap()) as usize;
+        (b[i] == 2 && b[i + 1] == 1, w(4), w(8), w(12))
+    };
+    let at = (0..bytes.len() - 16)
+        .find(|&i| {
+            let (magic, decoded, block, compressed) = header(&bytes, i);
+            // The next chunk follows right after: a real header, not bytes that look like one.
+            magic && decoded > 0 && block > 0 && (16..4096).contains(&compressed) && header(&bytes, i + compressed).0
+        })
+        .expect("a Blosc chunk in the fixture");
+    let compressed = header(&bytes, at).3;
+    bytes[at + 12..at + 16].copy_from_slice(&(compressed as u32 + 100).to_le_bytes());
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("overstated.h5");
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("overstated.h5") && err.contains("compressed chunk did not decode"), "{err}");
+    // The intact file still reads whole.
+    let (code, _, err) = evcal(&["info", s(&fixture("dsec.h5"))]);
+    assert_eq!(code, Some(0), "{err}");
+}

@@ -23,6 +23,7 @@ impl H5Reader {
     /// Opens `path` and checks that `events_data` is an N x 4 numeric table.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
         let err = |m: String| ReadError::new(path, Position::File, m);
+        super::blosc::install().map_err(err)?;
         let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
         let ds = file.dataset("events_data").map_err(|_| {
             let names = file.member_names().unwrap_or_default().join(", ");
@@ -64,7 +65,12 @@ impl H5Reader {
     fn fill(&mut self) -> Result<(), ReadError> {
         let end = (self.next_row + CHUNK_ROWS).min(self.rows);
         let a = self.ds.read_slice_2d::<f64, _>((self.next_row..end, ..)).map_err(|e| {
-            ReadError::new(&self.path, Position::Row(self.next_row as u64), format!("cannot read events_data: {e}"))
+            let hint = super::h5cols::filter_hint(&self.ds, &e.to_string());
+            ReadError::new(
+                &self.path,
+                Position::Row(self.next_row as u64),
+                format!("cannot read events_data: {e}{hint}"),
+            )
         })?;
         self.chunk.clear();
         self.chunk.extend(a.rows().into_iter().map(|r| [r[0], r[1], r[2], r[3]]));

@@ -124,6 +124,7 @@ impl H5ColumnsReader {
     /// with the time unit `unit` if given, else decided as the module says.
     pub fn open(path: &Path, layout: Format, unit: Option<TimeUnit>) -> Result<Self, ReadError> {
         let err = |m: String| ReadError::new(path, Position::File, m);
+        super::blosc::install().map_err(err)?;
         let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
         let prefix = if layout == Format::EventsGroupH5 { "events/" } else { "" };
         let ds = |n: &str| -> Result<hdf5::Dataset, ReadError> {
@@ -190,7 +191,7 @@ impl H5ColumnsReader {
                     TimeUnit::Microseconds
                 } else {
                     let (u, why) = guess_unit(&t, rows)
-                        .map_err(|m| err(format!("cannot read '{prefix}t': {m}{}", filter_hint(&t))))?;
+                        .map_err(|m| err(format!("cannot read '{prefix}t': {m}{}", filter_hint(&t, &m.to_string()))))?;
                     notes.push(format!(
                         "{}: '{prefix}t' taken as {} ({why}); set --time-unit to override",
                         path.display(),
@@ -248,7 +249,7 @@ impl H5ColumnsReader {
         let end = (self.next_row + CHUNK_ROWS).min(self.rows);
         let r = self.next_row..end;
         let e = |d: &hdf5::Dataset, n: &str, e: hdf5::Error| {
-            let m = format!("cannot read {n}: {e}{}", filter_hint(d));
+            let m = format!("cannot read {n}: {e}{}", filter_hint(d, &e.to_string()));
             ReadError::new(&self.path, Position::Row(r.start as u64), m)
         };
         let ints = |d: &hdf5::Dataset, n: &str| {
@@ -371,8 +372,9 @@ pub(crate) fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
 pub(crate) const MAX_CHUNK_BYTES: u64 = 64 << 20;
 
 /// When a dataset cannot be read, which of its compression filters evcal lacks (HDF5's own
-/// message then only names its plugin directory).
-fn filter_hint(d: &hdf5::Dataset) -> String {
+/// message then only names its plugin directory), or, when it has them all and one failed,
+/// that a compressed chunk is corrupt (HDF5 says only that a filter failed).
+pub(crate) fn filter_hint(d: &hdf5::Dataset, error: &str) -> String {
     let missing: Vec<String> = d
         .filters()
         .iter()
@@ -382,7 +384,11 @@ fn filter_hint(d: &hdf5::Dataset) -> String {
         })
         .collect();
     if missing.is_empty() {
-        return String::new();
+        return if error.contains("filter returned failure") {
+            " (a compressed chunk did not decode: the file is corrupt or truncated there)".into()
+        } else {
+            String::new()
+        };
     }
     format!(
         " (its data are compressed with HDF5 filter {}, which evcal does not build in; it builds in gzip, LZF and \

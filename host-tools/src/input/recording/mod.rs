@@ -7,6 +7,7 @@
 
 mod aedat4;
 mod bag;
+mod blosc;
 mod bytes;
 mod codec;
 mod flatbuf;
