@@ -628,3 +628,41 @@ fn a_blosc_chunk_claiming_more_bytes_than_it_has_is_refused() {
     let (code, _, err) = evcal(&["info", s(&fixture("dsec.h5"))]);
     assert_eq!(code, Some(0), "{err}");
 }
+
+#[test]
+fn hdf5_metadata_declared_beyond_the_file_is_refused_in_bounded_memory() {
+    // Each made HDF5 allocate and zero-fill over 2 GB while opening it (the first found by
+    // the read_h5 fuzz target): a superblock whose data start far beyond the 69-byte file,
+    // and one with a true end but 2 GB of driver information.
+    let sig = b"\x89HDF\r\n\x1a\n";
+    let v0 = |base: u64, end: u64, driver: u64| {
+        let mut b = sig.to_vec();
+        b.extend_from_slice(&[0, 0, 0, 0, 0, 8, 8, 0, 4, 0, 16, 0, 0, 0, 0, 0]);
+        for a in [base, u64::MAX, end, driver] {
+            b.extend_from_slice(&a.to_le_bytes());
+        }
+        // The root group's symbol table entry.
+        b.extend_from_slice(&0u64.to_le_bytes());
+        b.extend_from_slice(&200u64.to_le_bytes());
+        b.resize(96, 0);
+        b
+    };
+    let mut far = v0(662_026, 662_026, 57);
+    far.resize(69, 0);
+    let mut driver = v0(0, 176, 96);
+    driver.extend_from_slice(&[0, 0, 0, 0]);
+    driver.extend_from_slice(&0x8000_0000u32.to_le_bytes());
+    driver.extend_from_slice(b"NCSAfami");
+    driver.resize(176, 0);
+    let dir = tempfile::tempdir().unwrap();
+    for (name, bytes, cause) in [
+        ("far.h5", far, "puts its data from byte 662026"),
+        ("driver.h5", driver, "2147483648 bytes of driver information"),
+    ] {
+        let p = dir.path().join(name);
+        std::fs::write(&p, bytes).unwrap();
+        let (code, _, err) = evcal_limited(400_000, &["info", s(&p)]);
+        assert_eq!(code, Some(1), "{err}");
+        assert!(err.contains(name) && err.contains("truncated or corrupt") && err.contains(cause), "{err}");
+    }
+}

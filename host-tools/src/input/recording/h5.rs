@@ -23,8 +23,7 @@ impl H5Reader {
     /// Opens `path` and checks that `events_data` is an N x 4 numeric table.
     pub fn open(path: &Path) -> Result<Self, ReadError> {
         let err = |m: String| ReadError::new(path, Position::File, m);
-        super::blosc::install().map_err(err)?;
-        let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
+        let file = super::h5file::open(path).map_err(err)?;
         let ds = file.dataset("events_data").map_err(|_| {
             let names = file.member_names().unwrap_or_default().join(", ");
             err(format!(

@@ -68,7 +68,7 @@ impl TimeUnit {
 
 /// Which column layout a file has, by its datasets; `None` if neither.
 pub(crate) fn layout(path: &Path) -> Option<Format> {
-    let f = hdf5::File::open(path).ok()?;
+    let f = super::h5file::open(path).ok()?;
     let has_all = |prefix: &str| ["x", "y", "t", "p"].iter().all(|n| f.link_exists(&format!("{prefix}{n}")));
     if f.link_exists("events_data") {
         None
@@ -124,8 +124,7 @@ impl H5ColumnsReader {
     /// with the time unit `unit` if given, else decided as the module says.
     pub fn open(path: &Path, layout: Format, unit: Option<TimeUnit>) -> Result<Self, ReadError> {
         let err = |m: String| ReadError::new(path, Position::File, m);
-        super::blosc::install().map_err(err)?;
-        let file = hdf5::File::open(path).map_err(|e| err(format!("not a readable HDF5 file: {e}")))?;
+        let file = super::h5file::open(path).map_err(err)?;
         let prefix = if layout == Format::EventsGroupH5 { "events/" } else { "" };
         let ds = |n: &str| -> Result<hdf5::Dataset, ReadError> {
             let d = file.dataset(&format!("{prefix}{n}")).map_err(|e| err(format!("no dataset '{prefix}{n}': {e}")))?;

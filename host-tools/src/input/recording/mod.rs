@@ -13,6 +13,7 @@ mod codec;
 mod flatbuf;
 mod h5;
 mod h5cols;
+mod h5file;
 pub mod prophesee;
 mod text;
 
