@@ -666,3 +666,31 @@ fn hdf5_metadata_declared_beyond_the_file_is_refused_in_bounded_memory() {
         assert!(err.contains(name) && err.contains("truncated or corrupt") && err.contains(cause), "{err}");
     }
 }
+
+#[test]
+fn blosc_parameters_that_misstate_the_chunk_size_are_refused() {
+    // HDF5 1.10 copies a whole chunk from whatever a filter returns; the Blosc filter holds
+    // each decoded chunk to the size its parameters state, so that size must be the chunk's.
+    // In the DSEC fixture x and y (u16, 512 per chunk) state 1024 bytes; make them say 1000.
+    let bytes = std::fs::read(fixture("dsec.h5")).unwrap();
+    let stated = |n: u32| [2u32, 2, 2, n, 5, 1, 5].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>();
+    let (good, bad) = (stated(1024), stated(1000));
+    let mut patched = bytes.clone();
+    let mut found = 0;
+    for i in 0..bytes.len() - good.len() {
+        if bytes[i..i + good.len()] == good[..] {
+            patched[i..i + bad.len()].copy_from_slice(&bad);
+            found += 1;
+        }
+    }
+    assert_eq!(found, 2, "x's and y's filter parameters");
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("misstated.h5");
+    std::fs::write(&p, patched).unwrap();
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("misstated.h5") && err.contains("state chunks of 1000 bytes, but its chunks hold 1024"),
+        "{err}"
+    );
+}

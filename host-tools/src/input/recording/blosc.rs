@@ -7,14 +7,16 @@
 //! or LZ4 decoder under it) read past the buffer, which the fuzzer found. This filter takes
 //! the filter's place (HDF5 replaces a class registered again under the same id) and lets
 //! c-blosc decode only a chunk whose header fits it: the compressed size within the bytes
-//! HDF5 read, the decoded size within the dataset's chunk and [`MAX_CHUNK_BYTES`]. Within
-//! those bounds c-blosc checks every block offset and size against the header's compressed
-//! size, so it stays inside the buffer.
+//! HDF5 read, the decoded size that of the dataset's chunk (HDF5 1.10 copies a whole chunk
+//! from whatever a filter returns) and within [`MAX_CHUNK_BYTES`]. Within those bounds c-blosc
+//! checks every block offset and size against the header's compressed size, so it stays
+//! inside the buffer.
 //!
 //! evcal writes no Blosc data, so the encoder is absent: HDF5 refuses to write with it.
 
 use super::h5cols::MAX_CHUNK_BYTES;
 use hdf5_sys::h5::{H5allocate_memory, H5free_memory};
+use hdf5_sys::h5p::H5Pget_filter_by_id2;
 use hdf5_sys::h5z::{H5Z_class2_t, H5Zregister, H5Z_CLASS_T_VERS, H5Z_FLAG_REVERSE};
 use std::ffi::{c_uint, c_void};
 use std::sync::OnceLock;
@@ -56,14 +58,55 @@ pub(crate) fn install() -> Result<(), String> {
     .clone()
 }
 
-/// What a chunk's header says, if the chunk can be decoded safely: the decoded size.
-/// `chunk_limit` is the dataset's chunk size in bytes, as the writer recorded it (0: unknown).
-fn decoded_size(chunk: &[u8], chunk_limit: usize) -> Option<usize> {
+/// What a chunk's header says, if the chunk can be decoded safely: the decoded size, which
+/// must be `chunk_bytes`, the dataset's chunk size as the writer recorded it. HDF 1.10 takes
+/// a filter's output to be a whole chunk and copies from it as much, so a shorter one would
+/// be read past its end.
+fn decoded_size(chunk: &[u8], chunk_bytes: usize) -> Option<usize> {
     let header = chunk.get(..HEADER_BYTES)?;
     let word = |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]) as usize;
     let (decoded, compressed) = (word(4), word(12));
-    let limit = if chunk_limit == 0 { MAX_CHUNK_BYTES as usize } else { chunk_limit.min(MAX_CHUNK_BYTES as usize) };
-    (compressed >= HEADER_BYTES && compressed <= chunk.len() && decoded > 0 && decoded <= limit).then_some(decoded)
+    let fits = compressed >= HEADER_BYTES && compressed <= chunk.len();
+    (fits && decoded > 0 && decoded == chunk_bytes && decoded <= MAX_CHUNK_BYTES as usize).then_some(decoded)
+}
+
+/// Refuses a dataset whose Blosc parameters do not state its chunks' size in bytes (the
+/// fourth, which the filter holds every decoded chunk to; a corrupt file can state another).
+/// Called on every dataset before it is read.
+pub(crate) fn check_parameters(d: &hdf5::Dataset) -> Result<(), String> {
+    if !d.filters().iter().any(|f| f.id() == BLOSC_ID) {
+        return Ok(());
+    }
+    let Some(chunk) = d.chunk() else {
+        return Err("Blosc-compressed but not chunked: corrupt".into());
+    };
+    let item = d.dtype().map_err(|e| format!("its type cannot be read ({e})"))?.size() as u128;
+    let bytes = chunk.iter().map(|&n| n as u128).product::<u128>() * item;
+    let dcpl = d.dcpl().map_err(|e| format!("its compression parameters are corrupt ({e})"))?;
+    let (mut flags, mut n, mut values): (c_uint, usize, [c_uint; 8]) = (0, 8, [0; 8]);
+    // SAFETY: `values` holds the `n` values asked for; no name is asked for.
+    let status = hdf5::sync::sync(|| unsafe {
+        H5Pget_filter_by_id2(
+            dcpl.id(),
+            BLOSC_ID,
+            &mut flags,
+            &mut n,
+            values.as_mut_ptr(),
+            0,
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+        )
+    });
+    if status < 0 {
+        return Err("its Blosc parameters cannot be read: corrupt".into());
+    }
+    if n < 4 || u128::from(values[3]) != bytes {
+        let stated = if n < 4 { "none".to_string() } else { values[3].to_string() };
+        return Err(format!(
+            "its Blosc parameters state chunks of {stated} bytes, but its chunks hold {bytes}: corrupt"
+        ));
+    }
+    Ok(())
 }
 
 /// HDF5's filter callback: returns the decoded size and swaps `*buf` for the decoded chunk,
@@ -80,12 +123,12 @@ extern "C" fn filter(
         return 0;
     }
     // hdf5-blosc's parameters: filter version, format version, type size, chunk bytes, ...
-    let chunk_limit = if cd_values.is_null() || cd_nelmts < 4 {
-        0
-    } else {
-        // SAFETY: HDF5 passes `cd_nelmts` values.
-        unsafe { *cd_values.add(3) as usize }
-    };
+    // (the last checked against the dataset by `check_parameters`).
+    if cd_values.is_null() || cd_nelmts < 4 {
+        return 0;
+    }
+    // SAFETY: HDF5 passes `cd_nelmts` values.
+    let chunk_bytes = unsafe { *cd_values.add(3) as usize };
     // SAFETY: HDF5 hands the filter `*buf`, of `*buf_size` bytes, the first `nbytes` valid.
     let src = unsafe { *buf };
     if src.is_null() {
@@ -93,7 +136,7 @@ extern "C" fn filter(
     }
     let valid = nbytes.min(unsafe { *buf_size });
     let chunk = unsafe { std::slice::from_raw_parts(src as *const u8, valid) };
-    let Some(size) = decoded_size(chunk, chunk_limit) else {
+    let Some(size) = decoded_size(chunk, chunk_bytes) else {
         return 0;
     };
     // SAFETY: memory for HDF5 comes from HDF5's allocator, which frees the old buffer the same way.
@@ -138,13 +181,16 @@ mod test {
     }
 
     #[test]
-    fn a_decoded_size_beyond_the_dataset_chunk_or_the_limit_is_refused() {
+    fn a_decoded_size_other_than_the_datasets_chunk_is_refused() {
         let mut chunk = header(801, 64);
         chunk.resize(64, 0);
-        assert_eq!(decoded_size(&chunk, 800), None);
+        assert_eq!(decoded_size(&chunk, 800), None, "more than a chunk");
+        let mut short = header(188, 64);
+        short.resize(64, 0);
+        assert_eq!(decoded_size(&short, 1024), None, "less than a chunk: HDF5 would read past it");
         let mut huge = header(u32::MAX, 64);
         huge.resize(64, 0);
-        assert_eq!(decoded_size(&huge, 0), None);
+        assert_eq!(decoded_size(&huge, u32::MAX as usize), None, "beyond the chunk limit");
         let mut empty = header(0, 64);
         empty.resize(64, 0);
         assert_eq!(decoded_size(&empty, 0), None);

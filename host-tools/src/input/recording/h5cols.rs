@@ -355,6 +355,7 @@ pub(crate) fn check_filters(d: &hdf5::Dataset) -> Result<(), String> {
         .and_then(|p| p.get_filters())
         .map(|_| ())
         .map_err(|e| format!("its compression parameters are corrupt ({e})"))?;
+    super::blosc::check_parameters(d)?;
     if let Some(chunk) = d.chunk() {
         let item = d.dtype().map(|t| t.size()).unwrap_or(1) as u128;
         let bytes = chunk.iter().map(|&n| n as u128).product::<u128>() * item;
