@@ -603,6 +603,7 @@ fn a_blosc_chunk_claiming_more_bytes_than_it_has_is_refused() {
     // c-blosc trusts the compressed size in a chunk's own header; HDF5's Blosc filter as the
     // hdf5 crate registers it passed that on unchecked, and a header claiming more than the
     // chunk holds made the decoder read past the buffer (found by the read_h5 fuzz target).
+    // evcal now decodes chunks itself (input/recording/h5chunks.rs) and checks the header.
     // Here the first chunk of the DSEC fixture (Blosc-zstd) claims 100 bytes more than it has.
     let mut bytes = std::fs::read(fixture("dsec.h5")).unwrap();
     let header = |b: &[u8], i: usize| {
@@ -623,7 +624,7 @@ fn a_blosc_chunk_claiming_more_bytes_than_it_has_is_refused() {
     std::fs::write(&p, &bytes).unwrap();
     let (code, _, err) = evcal(&["info", s(&p)]);
     assert_eq!(code, Some(1), "{err}");
-    assert!(err.contains("overstated.h5") && err.contains("compressed chunk did not decode"), "{err}");
+    assert!(err.contains("overstated.h5") && err.contains("does not decode (a Blosc header claiming"), "{err}");
     // The intact file still reads whole.
     let (code, _, err) = evcal(&["info", s(&fixture("dsec.h5"))]);
     assert_eq!(code, Some(0), "{err}");
@@ -693,4 +694,74 @@ fn blosc_parameters_that_misstate_the_chunk_size_are_refused() {
         err.contains("misstated.h5") && err.contains("state chunks of 1000 bytes, but its chunks hold 1024"),
         "{err}"
     );
+}
+
+#[test]
+fn hdf5_chunks_short_of_their_size_are_refused_not_read_past() {
+    // HDF5 1.10 copies a whole chunk from whatever a chunk's stored bytes or filters give;
+    // valgrind showed reads past the buffer on both files below (a gzip chunk that inflates to
+    // 100 of its 1024 bytes; an unfiltered chunk stored in 188 of its 512). evcal reads chunks
+    // raw and decodes them itself, each held to its size.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 2048usize;
+    let write = |name: &str, gzip: bool| -> (PathBuf, u64, u64) {
+        let p = dir.path().join(name);
+        let f = hdf5::File::create(&p).unwrap();
+        let g = f.create_group("events").unwrap();
+        let xs: Vec<u16> = (0..n).map(|i| (i % 300) as u16).collect();
+        let ts: Vec<i64> = (0..n as i64).map(|i| 1000 + i).collect();
+        let ps: Vec<u8> = (0..n).map(|i| (i % 2) as u8).collect();
+        let b = || {
+            let d = g.new_dataset_builder().chunk(512);
+            if gzip {
+                d.deflate(1)
+            } else {
+                d
+            }
+        };
+        b().with_data(&xs).create("x").unwrap();
+        b().with_data(&xs).create("y").unwrap();
+        b().with_data(&ts).create("t").unwrap();
+        b().with_data(&ps).create("p").unwrap();
+        let x = g.dataset("x").unwrap();
+        let mut offset = [0u64];
+        let (mut mask, mut addr, mut size) = (0u32, 0u64, 0u64);
+        // SAFETY: plain query of an open dataset.
+        unsafe {
+            hdf5_sys::h5d::H5Dget_chunk_info_by_coord(x.id(), offset.as_mut_ptr(), &mut mask, &mut addr, &mut size);
+        }
+        (p, addr, size)
+    };
+    // gzip: the first chunk of x replaced by a zlib stream of 100 zero bytes.
+    let (p, addr, size) = write("gzip_short.h5", true);
+    let mut bytes = std::fs::read(&p).unwrap();
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(&[0u8; 100]).unwrap();
+    let short = z.finish().unwrap();
+    assert!(short.len() as u64 <= size);
+    bytes[addr as usize..addr as usize + short.len()].copy_from_slice(&short);
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("gzip_short.h5")
+            && err.contains("cannot read x")
+            && err.contains("gzip gave 100 bytes where 1024"),
+        "{err}"
+    );
+    // Unfiltered: the chunk index says x's first chunk (1024 bytes) is stored in 188.
+    let (p, _, size) = write("stored_short.h5", false);
+    assert_eq!(size, 1024);
+    let mut bytes = std::fs::read(&p).unwrap();
+    // The v1 B-tree's entry for the chunk: its size (u32) then the filter mask, before the
+    // chunk's offset; find it by the 1024 that starts it, followed by mask 0 and offset 0.
+    let entry: Vec<u8> = [1024u32.to_le_bytes(), 0u32.to_le_bytes()].concat();
+    let at = (0..bytes.len() - 16)
+        .find(|&i| bytes[i..i + 8] == entry[..] && bytes[i + 8..i + 16] == [0; 8])
+        .expect("the chunk's index entry");
+    bytes[at..at + 4].copy_from_slice(&188u32.to_le_bytes());
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("stored_short.h5") && err.contains("188 bytes stored where the chunk takes 1024"), "{err}");
 }

@@ -70,6 +70,32 @@ fn decoded_size(chunk: &[u8], chunk_bytes: usize) -> Option<usize> {
     (fits && decoded > 0 && decoded == chunk_bytes && decoded <= MAX_CHUNK_BYTES as usize).then_some(decoded)
 }
 
+/// A Blosc chunk decoded here (for the chunks evcal reads raw): its header's compressed size
+/// within `data`, its decoded size at most `limit`; c-blosc then stays within both.
+pub(crate) fn decode(data: &[u8], limit: usize) -> Result<Vec<u8>, String> {
+    let header = data.get(..HEADER_BYTES).ok_or("Blosc data shorter than their header")?;
+    let word = |i: usize| u32::from_le_bytes([header[i], header[i + 1], header[i + 2], header[i + 3]]) as usize;
+    let (decoded, compressed) = (word(4), word(12));
+    if compressed < HEADER_BYTES || compressed > data.len() {
+        return Err(format!("a Blosc header claiming {compressed} bytes of {}", data.len()));
+    }
+    if decoded > limit {
+        return Err(format!("Blosc data decoding to {decoded} bytes, more than {limit}"));
+    }
+    let mut out = vec![0u8; decoded];
+    if decoded == 0 {
+        return Ok(out);
+    }
+    // SAFETY: c-blosc reads within the header's compressed size (checked within `data`) and
+    // writes at most `decoded` bytes to `out`; one thread, no global state.
+    let got = unsafe { blosc_src::blosc_decompress_ctx(data.as_ptr().cast(), out.as_mut_ptr().cast(), decoded, 1) };
+    if got < 0 || got as usize != decoded {
+        return Err("Blosc data corrupt".into());
+    }
+    out.truncate(got as usize);
+    Ok(out)
+}
+
 /// Refuses a dataset whose Blosc parameters do not state its chunks' size in bytes (the
 /// fourth, which the filter holds every decoded chunk to; a corrupt file can state another).
 /// Called on every dataset before it is read.

@@ -11,7 +11,7 @@ const CHUNK_ROWS: usize = 1 << 16;
 /// Streaming reader of E-Calib HDF5 recordings.
 pub struct H5Reader {
     path: PathBuf,
-    ds: hdf5::Dataset,
+    ds: super::h5chunks::Column,
     rows: usize,
     next_row: usize,
     chunk: Vec<[f64; 4]>,
@@ -48,6 +48,7 @@ impl H5Reader {
         if shape.len() != 2 || shape[1] != 4 {
             return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));
         }
+        let ds = super::h5chunks::Column::open(ds).map_err(|m| err(format!("'events_data': {m}")))?;
         Ok(Self { path: path.to_path_buf(), ds, rows: shape[0], next_row: 0, chunk: Vec::new(), at: 0, failed: false })
     }
 
@@ -63,16 +64,11 @@ impl H5Reader {
 
     fn fill(&mut self) -> Result<(), ReadError> {
         let end = (self.next_row + CHUNK_ROWS).min(self.rows);
-        let a = self.ds.read_slice_2d::<f64, _>((self.next_row..end, ..)).map_err(|e| {
-            let hint = super::h5cols::filter_hint(&self.ds, &e.to_string());
-            ReadError::new(
-                &self.path,
-                Position::Row(self.next_row as u64),
-                format!("cannot read events_data: {e}{hint}"),
-            )
+        let a = self.ds.read::<f64>(self.next_row..end).map_err(|m| {
+            ReadError::new(&self.path, Position::Row(self.next_row as u64), format!("cannot read events_data: {m}"))
         })?;
         self.chunk.clear();
-        self.chunk.extend(a.rows().into_iter().map(|r| [r[0], r[1], r[2], r[3]]));
+        self.chunk.extend(a.chunks_exact(4).map(|r| [r[0], r[1], r[2], r[3]]));
         self.at = 0;
         self.next_row = end;
         Ok(())

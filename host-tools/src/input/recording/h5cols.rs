@@ -12,6 +12,7 @@
 //! The sensor size is read from `width`/`height` (or `sensor_width`/`sensor_height`)
 //! attributes of the group or the file when present.
 
+use super::h5chunks::Column;
 use super::{EventSource, Format, Position, ReadError};
 use evcal_core::event::{Event, SensorSize};
 use hdf5::types::TypeDescriptor;
@@ -90,11 +91,10 @@ enum TimeColumn {
 /// Streaming reader of the column layouts.
 pub struct H5ColumnsReader {
     path: PathBuf,
-    x: hdf5::Dataset,
-    y: hdf5::Dataset,
-    t: hdf5::Dataset,
-    p: hdf5::Dataset,
-    p_bool: bool,
+    x: Column,
+    y: Column,
+    t: Column,
+    p: Column,
     /// `t` is u64: read as such, since HDF5's conversion to i64 saturates values above
     /// i64::MAX to one value (every such event at the same time, silently).
     t_u64: bool,
@@ -155,15 +155,17 @@ impl H5ColumnsReader {
                 return Err(err(format!("'{prefix}{n}' is not an integer pixel coordinate ({:?})", kind(d, n)?)));
             }
         }
-        let p_bool = match kind(&p, "p")? {
-            TypeDescriptor::Boolean => true,
-            TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_) => false,
+        match kind(&p, "p")? {
+            TypeDescriptor::Boolean | TypeDescriptor::Integer(_) | TypeDescriptor::Unsigned(_) => {}
             other => return Err(err(format!("'{prefix}p' is not an integer or boolean polarity ({other:?})"))),
         };
         let group = if prefix.is_empty() { None } else { file.group("events").ok() };
         let mut notes = Vec::new();
         let mut offset_us = 0i64;
         let t_kind = kind(&t, "t")?;
+        let column =
+            |d: &hdf5::Dataset, n: &str| Column::open(d.clone()).map_err(|m| err(format!("'{prefix}{n}': {m}")));
+        let mut t_column = column(&t, "t")?;
         let t_u64 = matches!(t_kind, TypeDescriptor::Unsigned(hdf5::types::IntSize::U8));
         let time = match t_kind {
             TypeDescriptor::Float(_) => {
@@ -189,8 +191,8 @@ impl H5ColumnsReader {
                 } else if t_offset.is_some() {
                     TimeUnit::Microseconds
                 } else {
-                    let (u, why) = guess_unit(&t, rows)
-                        .map_err(|m| err(format!("cannot read '{prefix}t': {m}{}", filter_hint(&t, &m.to_string()))))?;
+                    let (u, why) =
+                        guess_unit(&mut t_column, rows).map_err(|m| err(format!("cannot read '{prefix}t': {m}")))?;
                     notes.push(format!(
                         "{}: '{prefix}t' taken as {} ({why}); set --time-unit to override",
                         path.display(),
@@ -206,11 +208,10 @@ impl H5ColumnsReader {
         let sensor = [group.as_deref(), Some(file_loc)].into_iter().flatten().find_map(size_attrs);
         Ok(Self {
             path: path.to_path_buf(),
-            x,
-            y,
-            t,
-            p,
-            p_bool,
+            x: column(&x, "x")?,
+            y: column(&y, "y")?,
+            t: t_column,
+            p: column(&p, "p")?,
             t_u64,
             time,
             offset_us,
@@ -247,29 +248,17 @@ impl H5ColumnsReader {
     fn fill(&mut self) -> Result<(), ReadError> {
         let end = (self.next_row + CHUNK_ROWS).min(self.rows);
         let r = self.next_row..end;
-        let e = |d: &hdf5::Dataset, n: &str, e: hdf5::Error| {
-            let m = format!("cannot read {n}: {e}{}", filter_hint(d, &e.to_string()));
-            ReadError::new(&self.path, Position::Row(r.start as u64), m)
+        let path = &self.path;
+        let e = |n: &'static str| {
+            move |m: String| ReadError::new(path, Position::Row(r.start as u64), format!("cannot read {n}: {m}"))
         };
-        let ints = |d: &hdf5::Dataset, n: &str| {
-            d.read_slice_1d::<i64, _>(r.clone()).map(|a| a.to_vec()).map_err(|x| e(d, n, x))
-        };
-        self.buf.x = ints(&self.x, "x")?;
-        self.buf.y = ints(&self.y, "y")?;
-        self.buf.p = if self.p_bool {
-            let a = self.p.read_slice_1d::<bool, _>(r.clone()).map_err(|x| e(&self.p, "p", x))?;
-            a.iter().map(|&b| i64::from(b)).collect()
-        } else {
-            ints(&self.p, "p")?
-        };
+        self.buf.x = self.x.read::<i64>(r.clone()).map_err(e("x"))?;
+        self.buf.y = self.y.read::<i64>(r.clone()).map_err(e("y"))?;
+        self.buf.p = self.p.read::<i64>(r.clone()).map_err(e("p"))?;
         match self.time {
-            TimeColumn::Int(_) if self.t_u64 => {
-                self.buf.tu = self.t.read_slice_1d::<u64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
-            }
-            TimeColumn::Int(_) => self.buf.t = ints(&self.t, "t")?,
-            TimeColumn::FloatSeconds => {
-                self.buf.tf = self.t.read_slice_1d::<f64, _>(r.clone()).map_err(|x| e(&self.t, "t", x))?.to_vec()
-            }
+            TimeColumn::Int(_) if self.t_u64 => self.buf.tu = self.t.read::<u64>(r.clone()).map_err(e("t"))?,
+            TimeColumn::Int(_) => self.buf.t = self.t.read::<i64>(r.clone()).map_err(e("t"))?,
+            TimeColumn::FloatSeconds => self.buf.tf = self.t.read::<f64>(r.clone()).map_err(e("t"))?,
         }
         self.at = 0;
         self.next_row = end;
@@ -435,12 +424,12 @@ fn size_attrs(loc: &hdf5::Location) -> Option<SensorSize> {
 }
 
 /// Guesses the unit of integer timestamps from their values (see the module's notes).
-fn guess_unit(t: &hdf5::Dataset, rows: usize) -> Result<(TimeUnit, String), hdf5::Error> {
+fn guess_unit(t: &mut Column, rows: usize) -> Result<(TimeUnit, String), String> {
     if rows == 0 {
         return Ok((TimeUnit::Microseconds, "no events; the usual unit".into()));
     }
-    let head = t.read_slice_1d::<i64, _>(0..rows.min(CHUNK_ROWS))?.to_vec();
-    let last = t.read_slice_1d::<i64, _>(rows - 1..rows)?[0];
+    let head = t.read::<i64>(0..rows.min(CHUNK_ROWS))?;
+    let last = t.read::<i64>(rows - 1..rows)?[0];
     Ok(guess_from(&head, last))
 }
 

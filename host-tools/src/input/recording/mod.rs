@@ -12,6 +12,7 @@ mod bytes;
 mod codec;
 mod flatbuf;
 mod h5;
+mod h5chunks;
 mod h5cols;
 mod h5file;
 pub mod prophesee;
