@@ -12,7 +12,6 @@ for arg in "$@"; do
 done
 
 need_apt=()
-dpkg -s libhdf5-dev >/dev/null 2>&1 || need_apt+=(libhdf5-dev)
 dpkg -s pkg-config >/dev/null 2>&1 || need_apt+=(pkg-config)
 command -v gcc >/dev/null 2>&1 || need_apt+=(gcc)
 # binutils' size and nm read the firmware's ARM ELF (scripts/firmware-size.sh, the QEMU tests).
@@ -51,6 +50,22 @@ PY
 then
   echo "setup: installing Python packages: ${writers[*]} ${readers[*]} numpy"
   python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" "${readers[@]}" numpy
+fi
+
+# CMake >= 3.26 builds HDF5 from source (the hdf5 crate's "static"; Debian 12's cmake is
+# 3.25): from PyPI, pinned, when the one on PATH is older.
+cmake_ok() {
+  command -v cmake >/dev/null 2>&1 || return 1
+  local v
+  v="$(cmake --version | head -1 | awk '{print $3}')"
+  [ "$(printf '%s\n3.26\n' "$v" | sort -V | head -1)" = "3.26" ]
+}
+if ! cmake_ok; then
+  echo "setup: installing CMake 3.31.10 (Python package cmake)"
+  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "cmake==3.31.10"
+  command -v pyenv >/dev/null 2>&1 && pyenv rehash
+  hash -r
+  cmake_ok || { echo "setup: cmake >= 3.26 is still not first on PATH ($(command -v cmake || echo none)); put pip's scripts folder first" >&2; exit 1; }
 fi
 
 # The core and the firmware build for the Cortex-M4F.

@@ -23,21 +23,26 @@ fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/formats").join(name)
 }
 
+/// evcal, as a test runs it. Tests here write HDF5 files while others run evcal, and a child
+/// inherits the writer's open file (HDF5 opens files without close-on-exec) with its
+/// exclusive lock, which would keep another test's evcal from opening that file once written:
+/// the children leave HDF5's file locks alone.
+fn evcal_command() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_evcal"));
+    c.env("HDF5_USE_FILE_LOCKING", "FALSE");
+    c
+}
+
 /// Runs evcal: (exit code, stdout, stderr).
 fn evcal(args: &[&str]) -> (Option<i32>, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_evcal")).args(args).output().unwrap();
+    let o = evcal_command().args(args).output().unwrap();
     (o.status.code(), String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
 }
 
 /// Runs evcal with `stdin` piped in.
 fn evcal_stdin(args: &[&str], stdin: &[u8]) -> (Option<i32>, String, String) {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_evcal"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut c =
+        evcal_command().args(args).stdin(Stdio::piped()).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     let mut w = c.stdin.take().unwrap();
     let data = stdin.to_vec();
     // A reader that stops early closes the pipe: not an error of the test.
@@ -108,7 +113,14 @@ fn same_through_a_pipe(file: &Path) {
 /// Runs evcal under an address-space limit (`ulimit -v`, KiB) and a time limit.
 fn evcal_limited(kib: u64, args: &[&str]) -> (Option<i32>, String, String) {
     let cmd = format!("ulimit -v {kib}; exec timeout 60 \"$0\" \"$@\"");
-    let o = Command::new("sh").arg("-c").arg(cmd).arg(env!("CARGO_BIN_EXE_evcal")).args(args).output().unwrap();
+    let o = Command::new("sh")
+        .arg("-c")
+        .arg(cmd)
+        .arg(env!("CARGO_BIN_EXE_evcal"))
+        .args(args)
+        .env("HDF5_USE_FILE_LOCKING", "FALSE")
+        .output()
+        .unwrap();
     (o.status.code(), String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
 }
 
@@ -503,11 +515,7 @@ fn replay_of_no_events_prints_no_rate() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("none.txt");
     std::fs::write(&p, "346 260\n").unwrap();
-    let mut dev = Command::new(env!("CARGO_BIN_EXE_evcal"))
-        .args(["device", "--listen", "127.0.0.1:0"])
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let mut dev = evcal_command().args(["device", "--listen", "127.0.0.1:0"]).stderr(Stdio::piped()).spawn().unwrap();
     let mut line = String::new();
     std::io::BufRead::read_line(&mut std::io::BufReader::new(dev.stderr.as_mut().unwrap()), &mut line).unwrap();
     let port = line.split("tcp:").nth(1).unwrap().split_whitespace().next().unwrap().to_string();
@@ -764,4 +772,43 @@ fn hdf5_chunks_short_of_their_size_are_refused_not_read_past() {
     let (code, _, err) = evcal(&["info", s(&p)]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("stored_short.h5") && err.contains("188 bytes stored where the chunk takes 1024"), "{err}");
+}
+
+#[test]
+fn a_file_that_killed_hdf5_1_10_is_an_error() {
+    // Found by the read_h5 fuzz target (a mutated h5py file, minimised by libFuzzer): HDF5
+    // 1.10, the system library evcal linked before, died of SIGFPE (a division by zero in
+    // H5D__chunk_set_info) opening one of its datasets, and evcal with it (exit status 136).
+    // HDF5 2.x, which evcal now builds from source, refuses the file.
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/hostile/hdf5_chunk_sigfpe.h5");
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("hdf5_chunk_sigfpe.h5") && err.contains("not a readable HDF5 file"), "{err}");
+}
+
+#[test]
+fn a_chunk_dimension_of_zero_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("zero_chunk.h5");
+    {
+        // The earliest format (as h5py writes by default): object headers without checksums.
+        let f = hdf5::File::with_options().with_fapl(|a| a.libver_earliest()).create(&p).unwrap();
+        let g = f.create_group("events").unwrap();
+        let v: Vec<u16> = (0..2000).map(|i| (i % 300) as u16).collect();
+        g.new_dataset_builder().chunk(700).with_data(&v).create("x").unwrap();
+        g.new_dataset_builder().chunk(700).with_data(&v).create("y").unwrap();
+        g.new_dataset_builder().chunk(700).with_data(&(0..2000i64).collect::<Vec<_>>()).create("t").unwrap();
+        g.new_dataset_builder().chunk(700).with_data(&vec![1u8; 2000]).create("p").unwrap();
+    }
+    let mut bytes = std::fs::read(&p).unwrap();
+    // The layout message of x: version 3, chunked, 2 dimensions (700 values of 2 bytes).
+    let dims: Vec<u8> = [700u32.to_le_bytes(), 2u32.to_le_bytes()].concat();
+    let at = (11..bytes.len() - 8)
+        .find(|&i| bytes[i..i + 8] == dims[..] && bytes[i - 11..i - 8] == [3, 2, 2])
+        .expect("x's layout message");
+    bytes[at..at + 4].copy_from_slice(&0u32.to_le_bytes());
+    std::fs::write(&p, &bytes).unwrap();
+    let (code, _, err) = evcal(&["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("zero_chunk.h5") && err.contains("'events/x'") && err.contains("chunk dimension"), "{err}");
 }

@@ -1,8 +1,9 @@
 //! HDF5 datasets read as evcal reads them: a chunked dataset chunk by chunk, each read raw
 //! and decoded here, held to its chunk's size; other layouts through the library.
 //!
-//! HDF5 1.10 (the system's `libhdf5` on Debian 12) takes whatever a chunk's stored bytes or
-//! its filters give to be a whole chunk and copies a whole chunk from it. A corrupt file can
+//! HDF5 1.10 (the system's `libhdf5` on Debian 12, which evcal used before it built HDF5 2.x
+//! from source) takes whatever a chunk's stored bytes or its filters give to be a whole chunk
+//! and copies a whole chunk from it. A corrupt file can
 //! make either shorter: an unfiltered chunk stored in fewer bytes than it holds, a gzip chunk
 //! that inflates short, a Blosc chunk whose header says less. The `read_h5` fuzz target found
 //! both ends of this under AddressSanitizer, and valgrind shows them on `evcal info`: reads
@@ -241,12 +242,13 @@ impl Chunked {
             ));
         }
         let mut stored = vec![0u8; size as usize];
-        let mut filters: u32 = 0;
-        // SAFETY: HDF5 writes the chunk's stored bytes, whose count it gave above, into `stored`.
+        let (mut filters, mut len): (u32, usize) = (0, stored.len());
+        // SAFETY: HDF5 writes at most `len` bytes (the chunk's stored size, given above) into
+        // `stored`, and says in `len` how many it wrote.
         let status = hdf5::sync::sync(|| unsafe {
-            H5Dread_chunk(ds.id(), H5P_DEFAULT, offset.as_ptr(), &mut filters, stored.as_mut_ptr().cast())
+            H5Dread_chunk(ds.id(), H5P_DEFAULT, offset.as_ptr(), &mut filters, stored.as_mut_ptr().cast(), &mut len)
         });
-        if status < 0 {
+        if status < 0 || len != stored.len() {
             return Err(format!("the chunk from row {first_row} cannot be read: the file is truncated or corrupt"));
         }
         undo(&self.pipeline, filters, stored, self.chunk_bytes)
