@@ -29,9 +29,14 @@ fi
 
 # The host reader targets write each input to a file too (to compare with the stream) and
 # spool the formats that need random access: on a RAM disk that is a third of the time.
+# Each run has a folder of its own there, removed at the end, so that runs side by side (a
+# long run beside CI's) never remove each other's files.
 if [ -z "${TMPDIR:-}" ] && [ -d /dev/shm ] && [ -w /dev/shm ]; then
   export TMPDIR=/dev/shm
 fi
+TMPDIR="$(mktemp -d "${TMPDIR:-/tmp}/evcal-fuzz-run.XXXXXX")"
+export TMPDIR
+trap 'rm -rf "$TMPDIR"' EXIT
 
 cd fuzz
 if [ $# -gt 0 ]; then targets=("$@"); else mapfile -t targets < <(cargo fuzz list); fi
@@ -72,7 +77,7 @@ for t in "${targets[@]}"; do
     for f in $(seeds "$t"); do cp "$f" "corpus/$t/"; done
   fi
   # -max_total_time ends a run cleanly; a crash or a failure to run exits nonzero.
-  log="$(mktemp)"
+  log="$(mktemp -p /tmp)"
   status=0
   # The HDF5 C library allocates global state on first use (filter registry, error stacks),
   # which LeakSanitizer reports as a leak of a run that cannot be reproduced alone; and on
@@ -94,6 +99,6 @@ for t in "${targets[@]}"; do
     exit 1
   fi
   rm -f "$log"
-  rm -rf "${TMPDIR:-/tmp}"/evcal-fuzz-*
+  rm -rf "${TMPDIR:?}"/evcal-fuzz-*
 done
 echo "fuzz: ${#targets[@]} targets, $secs s each, no failure"

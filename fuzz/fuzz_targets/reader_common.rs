@@ -35,15 +35,15 @@ pub fn read(name: &str, data: &[u8], compare: bool) {
     }
     // One folder for the whole run, named for the process (scripts/fuzz.sh removes it
     // afterwards): making and removing one per input was most of an input's time. It sits
-    // on a RAM disk where fuzz.sh finds one.
+    // on a RAM disk where fuzz.sh finds one. Made again if something removed it meanwhile
+    // (another run's clean-up): a long run must not die of a missing folder.
     static DIR: OnceLock<PathBuf> = OnceLock::new();
-    let dir = DIR.get_or_init(|| {
-        let d = std::env::temp_dir().join(format!("evcal-fuzz-{}", std::process::id()));
-        std::fs::create_dir_all(&d).expect("a temporary folder");
-        d
-    });
+    let dir = DIR.get_or_init(|| std::env::temp_dir().join(format!("evcal-fuzz-{}", std::process::id())));
     let path = dir.join(name);
-    std::fs::write(&path, data).expect("a temporary file");
+    if std::fs::write(&path, data).is_err() {
+        std::fs::create_dir_all(dir).expect("a temporary folder");
+        std::fs::write(&path, data).expect("a temporary file");
+    }
     let from_file = collect(Recording::open_with(&path, &opts));
     match (&streamed, &from_file) {
         (Ok((a, _)), Ok((b, _))) => assert!(a == b, "{} events from a stream, {} from the file", a.len(), b.len()),
