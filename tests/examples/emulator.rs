@@ -11,12 +11,19 @@
 //! the same views on the true centres (projected circle centres, and projected ellipse
 //! centres) and prints how the detected centres err against the truth. `--no-edge-shift` and
 //! `--no-smoothing` switch those steps off, as `evcal calibrate`'s flags of the same names do.
+//!
+//! For experiments on the detection (they bypass `--detections`' cache):
+//! `--events-per-window N` and `--step-ms MS` cut the windows as `evcal calibrate`'s options
+//! of the same names do; `--trail-filter-ms T` drops every event whose pixel fired the same
+//! polarity less than T ms before (a burst or "trail" filter, as some sensors offer on chip:
+//! it keeps the onset of each edge's burst and drops the slow settling behind it; this is a
+//! measurement, evcal does not filter so).
 
-use evcal_core::event::SensorSize;
+use evcal_core::event::{Event, SensorSize};
 use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
     input::detections::{self, read_jsonl, WindowRecord},
-    input::recording::Recording,
+    input::recording::{ReadError, Recording},
     pipeline::{calibrate_views, views_from_windows, Outcome, Setup},
 };
 use nalgebra::{Rotation3, Vector3};
@@ -158,8 +165,42 @@ fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u:
     Some([c0[0] - 0.5 * s[0], c0[1] - 0.5 * s[1]])
 }
 
-fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize) -> Vec<WindowRecord> {
-    let file = cache.map(|c| c.join(format!("{name}.jsonl")));
+/// How the detection of an experiment differs from `evcal calibrate`'s.
+#[derive(Default, Clone, Copy)]
+struct Experiment {
+    events_per_window: Option<usize>,
+    step_ms: Option<f64>,
+    trail_filter_ms: Option<f64>,
+}
+
+impl Experiment {
+    fn any(&self) -> bool {
+        self.events_per_window.is_some() || self.step_ms.is_some() || self.trail_filter_ms.is_some()
+    }
+}
+
+/// Drops each event whose pixel fired the same polarity less than `ms` before (any event of
+/// it, kept or not, restarts the wait): only the first event of each burst passes.
+fn trail_filter(
+    events: impl Iterator<Item = Result<Event, ReadError>>,
+    sensor: SensorSize,
+    ms: f64,
+) -> impl Iterator<Item = Result<Event, ReadError>> {
+    let width = usize::from(sensor.width);
+    let mut last = vec![[i64::MIN / 2; 2]; width * usize::from(sensor.height)];
+    let wait_us = (ms * 1e3) as i64;
+    events.filter(move |e| {
+        let Ok(e) = e else { return true };
+        let Some(seen) = last.get_mut(usize::from(e.y) * width + usize::from(e.x)) else { return true };
+        let t = e.t_us as i64;
+        let keep = t - seen[usize::from(e.polarity)] >= wait_us;
+        seen[usize::from(e.polarity)] = t;
+        keep
+    })
+}
+
+fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize, x: Experiment) -> Vec<WindowRecord> {
+    let file = if x.any() { None } else { cache.map(|c| c.join(format!("{name}.jsonl"))) };
     if let Some(w) = file.as_ref().and_then(|f| std::fs::File::open(f).ok()) {
         if let Ok(w) = read_jsonl(std::io::BufReader::new(w)) {
             return w;
@@ -171,11 +212,21 @@ fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize) 
         std::process::exit(1)
     });
     let mut windows = Vec::new();
-    detections::run(rec, detections::host_config(sensor), |d| windows.push(WindowRecord::from_detection(d)))
-        .unwrap_or_else(|e| {
-            eprintln!("{}: {e}", path.display());
-            std::process::exit(1)
-        });
+    let mut cfg = detections::host_config(sensor);
+    if let Some(n) = x.events_per_window {
+        cfg.window.events = n;
+    }
+    if let Some(ms) = x.step_ms {
+        cfg.window.step_us = (ms * 1e3).round() as u64;
+    }
+    let events: Box<dyn Iterator<Item = Result<Event, ReadError>>> = match x.trail_filter_ms {
+        Some(ms) => Box::new(trail_filter(rec, sensor, ms)),
+        None => Box::new(rec),
+    };
+    detections::run(events, cfg, |d| windows.push(WindowRecord::from_detection(d))).unwrap_or_else(|e| {
+        eprintln!("{}: {e}", path.display());
+        std::process::exit(1)
+    });
     if let Some(f) = file {
         let _ = std::fs::create_dir_all(f.parent().unwrap_or(Path::new(".")));
         let text: String = windows.iter().map(|w| w.to_json_line() + "\n").collect();
@@ -205,11 +256,27 @@ fn main() {
         cache = Some(PathBuf::from(args.remove(i + 1)));
         args.remove(i);
     }
+    let mut value = |name: &str| -> Option<f64> {
+        let i = args.iter().position(|a| a == name)?;
+        let v = args.get(i + 1).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite() && *v > 0.0);
+        let Some(v) = v else {
+            eprintln!("{name} needs a positive number");
+            std::process::exit(2);
+        };
+        args.drain(i..i + 2);
+        Some(v)
+    };
+    let experiment = Experiment {
+        events_per_window: value("--events-per-window").map(|v| v as usize),
+        step_ms: value("--step-ms"),
+        trail_filter_ms: value("--trail-filter-ms"),
+    };
     let mut flag = |name: &str| args.iter().position(|a| a == name).map(|i| args.remove(i)).is_some();
     let (diagnose, no_edge_shift, no_smoothing) = (flag("--diagnose"), flag("--no-edge-shift"), flag("--no-smoothing"));
     if args.is_empty() {
         eprintln!(
-            "usage: emulator [--detections DIR] [--diagnose] [--no-edge-shift] [--no-smoothing] RECORDING_DIR..."
+            "usage: emulator [--detections DIR] [--diagnose] [--no-edge-shift] [--no-smoothing] \
+             [--events-per-window N] [--step-ms MS] [--trail-filter-ms T] RECORDING_DIR..."
         );
         std::process::exit(2);
     }
@@ -225,7 +292,7 @@ fn main() {
             });
         let k = truth.intrinsics();
         let sensor = SensorSize { width: truth.sensor.width, height: truth.sensor.height };
-        let windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor);
+        let windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment);
         let pattern =
             evcal_host::views::grid::Pattern::new(truth.pattern.rows, truth.pattern.cols, truth.pattern.spacing_m)
                 .expect("a valid pattern");
@@ -278,7 +345,11 @@ fn main() {
 /// Per view, the delay that best explains its centres (detected ≈ truth at t_ref − d); the
 /// residual left after it, split along and across each circle's motion; and the solve of
 /// the same views on the truth plus only one part of that residual, which tells which part
-/// moves the intrinsics (plain least squares, so that every point counts alike).
+/// moves the intrinsics (plain least squares, so that every point counts alike). Also each
+/// view's own shift along the motion, fitted with its delay against the truth, and the solve
+/// with each view's shift taken out: how much of the error a shift that changes from view
+/// to view (the light, and with it the pixels' latency, changing with the board's tilt)
+/// would explain.
 fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &Outcome, setup: &Setup) {
     let t_of = |seq: u64| windows.iter().find(|w| u64::from(w.seq) == seq).map_or(0.0, |w| w.t_ref_us as f64 * 1e-6);
     let plain = Options { robust: false, circle_radius: Some(truth.pattern.radius_m), ..setup.calib.clone() };
@@ -291,6 +362,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     let mut fitted = Vec::new();
     let mut feats: Vec<[f64; 9]> = Vec::new();
     let mut fit_gap: Vec<([f64; 2], [f64; 2], [f64; 2])> = Vec::new();
+    let mut view_shifts: Vec<f64> = Vec::new();
+    let mut per_view_moved: Vec<View> = Vec::new();
     for r in &out.calibration.views {
         let v = &out.used[r.view];
         let t = t_of(out.used_origins[r.view].window_seq);
@@ -357,6 +430,40 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
                 view.image.push(p);
             }
         }
+        {
+            // A shift along the motion of this view's own, fitted with its delay (least
+            // squares of the residual on the unit direction and on the velocity): what a
+            // constant edge shift cannot take out when the light, and with it the pixels'
+            // latency, changes from view to view.
+            let (mut aa, mut ab, mut bb, mut ra, mut rb) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let mut units = Vec::new();
+            // e1 (truth at the delay) and e2 (detected) hold the same points, in order.
+            for ((o, e), m) in e1.object.iter().zip(&e1.image).zip(&e2.image) {
+                let Some(later) = outline(o, d - 1e-3) else {
+                    units.push([0.0, 0.0]);
+                    continue;
+                };
+                let vel = [later[0] - e[0], later[1] - e[1]];
+                let n = vel[0].hypot(vel[1]).max(1e-12);
+                let u = [vel[0] / n, vel[1] / n];
+                units.push(u);
+                let r = [m[0] - e[0], m[1] - e[1]];
+                aa += 1.0;
+                ab += u[0] * vel[0] + u[1] * vel[1];
+                bb += vel[0] * vel[0] + vel[1] * vel[1];
+                ra += r[0] * u[0] + r[1] * u[1];
+                rb += r[0] * vel[0] + r[1] * vel[1];
+            }
+            let det = aa * bb - ab * ab;
+            let a = if det.abs() > 1e-12 { (ra * bb - rb * ab) / det } else { 0.0 };
+            view_shifts.push(a);
+            let mut moved = e2.clone();
+            for (p, u) in moved.image.iter_mut().zip(&units) {
+                p[0] -= a * u[0];
+                p[1] -= a * u[1];
+            }
+            per_view_moved.push(moved);
+        }
         exact.push(e0);
         fitted.push(e3);
         delayed.push(e1);
@@ -419,6 +526,18 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         }
     }
     show("outline circle-fitted across the motion at the best delay, outlines modelled", &fitted, &plain);
+    {
+        let mut sorted = view_shifts.clone();
+        sorted.sort_by(f64::total_cmp);
+        let q = |f: f64| sorted[((sorted.len() - 1) as f64 * f) as usize];
+        println!(
+            "    per-view shift along the motion (with the view's delay): median {:+.3}, 10 % {:+.3}, 90 % {:+.3} px",
+            q(0.5),
+            q(0.1),
+            q(0.9)
+        );
+        show("detected less each view's own shift (fitted against the truth)", &per_view_moved, &plain);
+    }
     {
         // How the fitted-minus-centroid gap compares with the detected residual, across the motion.
         let (mut sg, mut sr, mut sgg, mut sgr, mut srr) = (0.0, 0.0, 0.0, 0.0, 0.0);
