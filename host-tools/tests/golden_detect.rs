@@ -22,7 +22,9 @@ fn detect_on_a_seeded_simulation_is_pinned() {
     let (seed, seconds) = (golden::DETECT_SEED.to_string(), golden::DETECT_SECONDS.to_string());
     evcal(&["simulate", "--seed", &seed, "--seconds", &seconds, "--quiet", "-o", rec_s]);
     let step = golden::DETECT_STEP_MS.to_string();
-    evcal(&["detect", rec_s, "--step-ms", &step, "--quiet", "-o", jsonl_s]);
+    // The device's window, which the firmware's replay of the same events uses too.
+    let events = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW.to_string();
+    evcal(&["detect", rec_s, "--step-ms", &step, "--events-per-window", &events, "--quiet", "-o", jsonl_s]);
     let bytes = std::fs::read(&jsonl).unwrap();
     // Not an empty or truncated file that happens to match: the windows are all there.
     assert_eq!(bytes.iter().filter(|&&b| b == b'\n').count(), 101, "windows in the detections file");

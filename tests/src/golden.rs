@@ -26,8 +26,9 @@ pub const DETECT_SECONDS: f64 = 0.47;
 /// Milliseconds between window ticks of [`DETECT_JSONL`]: windows back to back.
 pub const DETECT_STEP_MS: u64 = 0;
 
-/// `evcal detect REC --step-ms 0` on [`DETECT_SEED`]'s recording: its JSON lines, with
-/// their newlines (101 windows). The same bytes as the firmware's detection frames give,
+/// `evcal detect REC --step-ms 0 --events-per-window 4000` (the device's window; the host's
+/// default is 8000) on [`DETECT_SEED`]'s recording: its JSON lines, with their newlines (101
+/// windows). The same bytes as the firmware's detection frames give,
 /// written as `evcal replay` writes them.
 pub const DETECT_JSONL: u64 = 0xf306_0bde_7816_0794;
 

@@ -15,10 +15,10 @@
 //! long from a pose set covering half the cone's tilt cycle. Over seeds (`examples/calibration_seeds.rs`) one DAVIS346 3x9 spiral seed
 //! of seven reads fx +0.106 % and one dim cone seed +0.103 %; the means are within 0.07 %.
 //! With the true centres in the same views the solve is exact. Windows are the host's
-//! defaults (`detections::host_config`), as `evcal calibrate` cuts them: 4000 events on the
-//! DAVIS346, 7500 on the DVXplorer.
+//! defaults (`detections::host_config`), as `evcal calibrate` cuts them: 8000 events on the
+//! DAVIS346, 15 000 on the DVXplorer.
 //!
-//! In low light a 4000-event window often holds too few events of part of the grid for the
+//! In low light a window often holds too few events of part of the grid for the
 //! finder to label it; the windows around it label the part that was seen
 //! (`evcal_host::views::track`), which counts as found but is not solved on. The figures are in
 //! the issue's closing note.
@@ -291,9 +291,9 @@ fn dvxplorer_4x11_cone_good_light() {
     });
     guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
     // The issue's target for windows sized to the sensor: the finder labels the grid by
-    // itself in 90 % of the windows where it is wholly in view (7500-event windows: 94.4 %;
-    // 4000, the paper's size for a DAVIS346: 78.9 %, the rest followed from the windows
-    // around them; RMS 0.069 against 0.111 px).
+    // itself in 90 % of the windows where it is wholly in view (15 000-event windows: 100 %,
+    // RMS 0.041 px; 7500: 94.4 %, 0.069 px; 4000, the paper's size for a DAVIS346: 78.9 %,
+    // the rest followed from the windows around them, 0.111 px).
     assert!(
         f.alone_in_view >= 0.90,
         "the finder alone labels the grid in {:.1} % of in-view windows",
@@ -304,7 +304,8 @@ fn dvxplorer_4x11_cone_good_light() {
 /// The DVXplorer in low light: its far columns often too dim for the core, the case in which
 /// the finder once labelled a grid two columns off (a background disc lined up beyond the
 /// seen columns; seed 2, window 297; see `grid::place`). The issue sets no RMS target for low
-/// light; this one reached 0.164 px with 4000-event windows (seeds 1, 5: 0.141, 0.143 before the 1.75 px give-up of clutter fits), 0.090 px with the host's 7500.
+/// light; this one reached 0.164 px with 4000-event windows (seeds 1, 5: 0.141, 0.143 before
+/// the 1.75 px give-up of clutter fits), 0.090 px with 7500, 0.054 px with the host's 15 000.
 #[test]
 fn dvxplorer_4x11_cone_low_light() {
     let f = run(&Case {

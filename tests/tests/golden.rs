@@ -21,7 +21,10 @@ fn simulation(seed: u64, seconds: f64) -> (Vec<evcal_core::event::Event>, Sensor
 #[test]
 fn detections_of_the_seeded_simulation_are_pinned() {
     let (events, sensor) = simulation(golden::DETECT_SEED, golden::DETECT_SECONDS);
+    // The device's window (the host's default is longer): the same bytes the firmware's
+    // replay writes.
     let mut cfg = detections::host_config(sensor);
+    cfg.window.events = evcal_core::config::DEFAULT_EVENTS_PER_WINDOW;
     cfg.window.step_us = golden::DETECT_STEP_MS * 1000;
     let mut jsonl = String::new();
     let summary = detections::run(events.into_iter().map(Ok), cfg, |d| {

@@ -270,7 +270,7 @@ fn bytes_per_window_and_per_event() {
     }
 }
 
-/// The host's default window for a DVXplorer (7500 events) is more than the firmware holds:
+/// The host's default window for a DVXplorer (15 000 events) is more than the firmware holds:
 /// a replay asking for it as a wish gets the device's 4000-event windows, exactly the lines
 /// `evcal detect --events-per-window 4000` prints, and a note; asking for it as a demand (the
 /// user's `--events-per-window`) is an error that says what the device holds.
@@ -278,7 +278,7 @@ fn bytes_per_window_and_per_event() {
 fn a_default_window_beyond_the_device_is_cut_to_what_it_holds() {
     let (events, _) = recording(0.4, Light::Good, 3);
     let asked = detections::host_config(SensorSize::DVXPLORER);
-    assert_eq!(asked.window.events, 7500);
+    assert_eq!(asked.window.events, 15_000);
     let held = DetectConfig { window: evcal_core::window::WindowConfig { events: 4000, ..asked.window }, ..asked };
     let expected = detect_lines(&events, held);
     let opts = ReplayOptions { window_up_to_device: true, ..quick() };
@@ -294,5 +294,5 @@ fn a_default_window_beyond_the_device_is_cut_to_what_it_holds() {
         .unwrap_err();
     drop(link);
     device.join();
-    assert!(e.to_string().contains("holds at most 4000 events per window; 7500 were asked"), "{e}");
+    assert!(e.to_string().contains("holds at most 4000 events per window; 15000 were asked"), "{e}");
 }

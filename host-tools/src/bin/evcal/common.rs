@@ -67,18 +67,20 @@ pub struct CoreArgs {
     /// from the file, else guessed from the largest coordinates (a note says so).
     #[arg(long)]
     pub sensor: Option<String>,
-    /// Events per window [default: scaled with the sensor, 4000 for 346x260; --help says how]
+    /// Events per window [default: scaled with the sensor, 8000 for 346x260; --help says how]
     ///
-    /// Default: the E-Calib paper's 4000 for a DAVIS346 (346x260), scaled with the sensor's
-    /// linear size: 4000·√(W·H / (346·260)), rounded to a multiple of 500. 640x480
-    /// (DVXplorer): 7500; 1280x720 (IMX636, EVK4): 13000; 320x320 (GenX320): 4500. A larger
-    /// sensor fires more events a second (the board's outlines span more pixels and cross
-    /// more of them), so a window of a fixed number of events is shorter and each circle's
-    /// events sparser along its outline: on a simulated 640x480 sweep the finder labels the
-    /// grid by itself in 88 % of the windows of 4000 events, 96 % of 7500 (docs/accuracy.md:
-    /// Windows sized to the sensor). The value chosen is printed on standard error. Up to
-    /// 32000 on the host; `evcal replay` asks a device for at most what it holds (the
-    /// firmware: 4000), unless given this option.
+    /// Default: 8000 for a DAVIS346 (346x260), twice the E-Calib paper's 4000, scaled with
+    /// the sensor's linear size: 8000·√(W·H / (346·260)), rounded to a multiple of 500.
+    /// 640x480 (DVXplorer): 15000; 1280x720 (IMX636, EVK4): 25500; 320x320 (GenX320): 8500.
+    /// Twice the paper's because a dim pixel answers 15-20 ms late, longer than 4000 events
+    /// last: the longer window sees each circle's late events whole, whatever its speed (on
+    /// an independent emulator's dim recording the principal point came from 2.2 px off to
+    /// 0.3 px). A larger sensor fires more events a second (the board's outlines span more
+    /// pixels and cross more of them), so a window of a fixed number of events is shorter
+    /// and each circle's events sparser along its outline (docs/accuracy.md: Windows sized
+    /// to the sensor). The value chosen is printed on standard error. Up to 32000 on the
+    /// host; `evcal replay` asks a device for at most what it holds (the firmware: 4000),
+    /// unless given this option.
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
     pub events_per_window: Option<u32>,

@@ -4,11 +4,11 @@ use crate::calibrate::{export, find_views, list_written, report, solve};
 use crate::common::{outln, run_windowed_simulation};
 use anyhow::{Context, Result};
 use clap::Args;
-use evcal_core::event::SensorSize;
+use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
     calib::Intrinsics,
     eval::{self, ScoreRules},
-    input::detections::{self, WindowRecord},
+    input::detections::WindowRecord,
     input::link::replay::replay_virtual,
     pipeline::Setup,
     sim::{Light, SimConfig, Trajectory},
@@ -52,8 +52,10 @@ pub fn run(a: DemoArgs) -> Result<()> {
         a.light.name(),
         a.seconds
     )?;
-    // The host's defaults: for the DAVIS346 the paper's 4000 events per window.
-    let det = detections::host_config(SensorSize { width: c.width, height: c.height });
+    // Every window goes through the device's protocol loop below, so the device's window:
+    // the paper's 4000 events, what the firmware holds (`evcal calibrate` on a recording
+    // cuts the host's longer windows).
+    let det = DetectConfig::new(SensorSize { width: c.width, height: c.height });
     let (events, sim) = run_windowed_simulation(cfg, a.seconds, det.window, a.quiet)?;
     // As simulate_windows steps.
     let step_s = (det.window.step_us as f64 * 1e-6).max(1e-3);

@@ -36,8 +36,8 @@ pub struct SimulateArgs {
     #[arg(long, short)]
     pub out: PathBuf,
     /// Events per window of the truth (match what you pass to `evcal detect`) [default: as
-    /// `evcal detect`'s for the sensor: 4000 for davis346, 7500 dvxplorer, 13000 imx636, 4500
-    /// genx320]
+    /// `evcal detect`'s for the sensor: 8000 for davis346, 15000 dvxplorer, 25500 imx636,
+    /// 8500 genx320]
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
     pub events_per_window: Option<u32>,
