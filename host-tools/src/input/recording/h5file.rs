@@ -9,6 +9,13 @@
 //! and the end far beyond the file, and (made after them) 176 bytes with a true end but
 //! driver information of 2 GB. With the base address, the declared end and the driver block
 //! all within the file, every metadata read is bounded by the file's own size.
+//!
+//! One structure HDF5 reads without such a bound: a group's local heap (the names of its
+//! links, in files with the original group format, as h5py writes them) keeps a list of its
+//! free blocks, each naming the next, and HDF5 (2.2) follows it until it ends, allocating a
+//! node per block, without noticing that it loops. A 40 kB file the fuzz target found, whose
+//! free list names itself, made `evcal info` take all 24 GB of the machine in two minutes.
+//! [`check_local_heaps`] walks every local heap's free list first.
 
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
@@ -53,6 +60,7 @@ fn check_declared_end(path: &Path) -> Result<(), String> {
         if sb.end > len {
             return corrupt(format!("puts the end of the file at byte {}", sb.end));
         }
+        let sizes = (sb.size_of_offsets, sb.size_of_lengths);
         if let Some(driver) = sb.driver {
             // The driver information block: version, 3 reserved bytes, its size (32 bits),
             // the driver's 8-byte name, then that many bytes, which HDF5 reads as the size says.
@@ -67,7 +75,86 @@ fn check_declared_end(path: &Path) -> Result<(), String> {
                 return corrupt(format!("declares {size} bytes of driver information from byte {start}"));
             }
         }
-        return Ok(());
+        return check_local_heaps(&mut f, len, sb.base, sizes);
+    }
+    Ok(())
+}
+
+/// The signature of a local heap's header: "HEAP", version 0, three reserved zero bytes.
+const LOCAL_HEAP: &[u8; 8] = b"HEAP\0\0\0\0";
+/// HDF5's "no next free block" in a local heap's free list.
+const FREE_NULL: u64 = 1;
+/// Bytes of the file searched at a time for local heaps.
+const SCAN_CHUNK: usize = 1 << 20;
+
+/// Refuses a file holding a local heap whose free list loops (see the module's note).
+///
+/// Local heaps are found by their signature anywhere after `base` (a signature HDF5 never
+/// reads, in data, is checked too: it would take the bytes of a heap header, a data block
+/// within the file and a free list that loops to refuse a file by mistake). Each list is
+/// followed as HDF5 follows it, stopping where HDF5 would stop with an error of its own; a
+/// loop is found by Brent's method, in steps bounded by the blocks the list really has.
+fn check_local_heaps(f: &mut std::fs::File, len: u64, base: u64, (o, l): (usize, usize)) -> Result<(), String> {
+    let header = LOCAL_HEAP.len() + 2 * l + o;
+    let mut read_at = |at: u64, buf: &mut [u8]| -> Result<usize, String> {
+        f.seek(SeekFrom::Start(at)).and_then(|_| read_up_to(f, buf)).map_err(|e| format!("cannot read it: {e}"))
+    };
+    let mut found = Vec::new();
+    let mut chunk = vec![0u8; SCAN_CHUNK + LOCAL_HEAP.len()];
+    let mut at = base;
+    while at < len {
+        let n = read_at(at, &mut chunk)?;
+        if n == 0 {
+            break;
+        }
+        found.extend(memchr::memmem::find_iter(&chunk[..n], LOCAL_HEAP).map(|i| at + i as u64));
+        // The chunks overlap by a signature's length less one, so none is cut in two.
+        at += (n.saturating_sub(LOCAL_HEAP.len() - 1)).max(1) as u64;
+    }
+    found.dedup();
+    let mut head = vec![0u8; header];
+    let mut field = [0u8; 8];
+    for heap in found {
+        if read_at(heap, &mut head)? < header {
+            continue;
+        }
+        let le = |b: &[u8]| b.iter().rev().fold(0u64, |v, &x| (v << 8) | u64::from(x));
+        let size = le(&head[8..8 + l]);
+        let first = le(&head[8 + l..8 + 2 * l]);
+        let Some(block) = base.checked_add(le(&head[8 + 2 * l..header])) else { continue };
+        if block.saturating_add(size) > len {
+            continue; // HDF5 fails to read the data block.
+        }
+        // HDF5's step: the block at `fb` must hold its two fields; it names the next block
+        // (0 is an error) and its own size (beyond the data block, an error).
+        let mut next = |fb: u64| -> Result<Option<u64>, String> {
+            if fb == FREE_NULL || fb.checked_add(2 * l as u64).is_none_or(|e| e > size) {
+                return Ok(None);
+            }
+            if read_at(block + fb, &mut field[..l])? < l {
+                return Ok(None);
+            }
+            let to = le(&field[..l]);
+            if read_at(block + fb + l as u64, &mut field[..l])? < l {
+                return Ok(None);
+            }
+            let own = le(&field[..l]);
+            Ok((to != 0 && fb.checked_add(own).is_some_and(|e| e <= size)).then_some(to))
+        };
+        // Brent: a tortoise that jumps to the hare at every power of two.
+        let (mut tortoise, mut hare, mut power, mut steps) = (first, first, 1u64, 0u64);
+        while let Some(n) = next(hare)? {
+            hare = n;
+            steps += 1;
+            if hare == tortoise {
+                return Err(format!(
+                    "corrupt: the local heap at byte {heap} lists free blocks that lead back to themselves, a list HDF5 would follow forever"
+                ));
+            }
+            if steps == power {
+                (tortoise, power, steps) = (hare, power * 2, 0);
+            }
+        }
     }
     Ok(())
 }
@@ -92,6 +179,10 @@ struct Superblock {
     end: u64,
     /// Where its driver information block is, relative to `base` (versions 0 and 1).
     driver: Option<u64>,
+    /// Bytes of an address in the file.
+    size_of_offsets: usize,
+    /// Bytes of a length in the file.
+    size_of_lengths: usize,
 }
 
 impl Superblock {
@@ -101,14 +192,15 @@ impl Superblock {
         // Versions 0 and 1 list four addresses after their fixed fields (24 and 28 bytes):
         // base, free space, end of file, driver information; 2 and 3 list base, extension,
         // end of file and root group after 12.
-        let (size_of_offsets, first) = match version {
-            0 => (*sb.get(13)?, 24),
-            1 => (*sb.get(13)?, 28),
-            2 | 3 => (*sb.get(9)?, 12),
+        let (size_of_offsets, size_of_lengths, first) = match version {
+            0 => (*sb.get(13)?, *sb.get(14)?, 24),
+            1 => (*sb.get(13)?, *sb.get(14)?, 28),
+            2 | 3 => (*sb.get(9)?, *sb.get(10)?, 12),
             _ => return None,
         };
-        let o = usize::from(size_of_offsets);
-        if ![2, 4, 8, 16, 32].contains(&o) {
+        let (o, l) = (usize::from(size_of_offsets), usize::from(size_of_lengths));
+        // HDF5 writes 2, 4, 8 (16 and 32 allowed by the format); evcal's checks read up to 8.
+        if ![2, 4, 8, 16, 32].contains(&o) || ![2, 4, 8].contains(&l) {
             return None;
         }
         let address = |i: usize| -> Option<Option<u64>> {
@@ -126,6 +218,8 @@ impl Superblock {
             base: address(0)?.unwrap_or(u64::MAX),
             end: address(2)?.unwrap_or(u64::MAX),
             driver: if version < 2 { address(3)? } else { None },
+            size_of_offsets: o,
+            size_of_lengths: l,
         })
     }
 }
@@ -146,13 +240,16 @@ mod test {
     #[test]
     fn the_addresses_are_read_from_each_superblock_version() {
         let sb = Superblock::parse(&superblock_v0(1234, None)).unwrap();
-        assert_eq!(sb, Superblock { base: 0, end: 1234, driver: None });
+        assert_eq!(sb, Superblock { base: 0, end: 1234, driver: None, size_of_offsets: 8, size_of_lengths: 8 });
         let mut v2 = SIGNATURE.to_vec();
         v2.extend_from_slice(&[2, 4, 4, 0]);
         for a in [0u32, u32::MAX, 777, 48] {
             v2.extend_from_slice(&a.to_le_bytes());
         }
-        assert_eq!(Superblock::parse(&v2), Some(Superblock { base: 0, end: 777, driver: None }));
+        assert_eq!(
+            Superblock::parse(&v2),
+            Some(Superblock { base: 0, end: 777, driver: None, size_of_offsets: 4, size_of_lengths: 4 })
+        );
         let mut bad = superblock_v0(1, None);
         bad[13] = 3;
         assert_eq!(Superblock::parse(&bad), None, "an offset size HDF5 never writes: left to HDF5");
@@ -173,6 +270,52 @@ mod test {
         with_block.extend(superblock_v0(1 << 30, None));
         std::fs::write(&p, with_block).unwrap();
         assert!(check_declared_end(&p).unwrap_err().contains("superblock (at byte 512)"));
+    }
+
+    /// A file of a v0 superblock and one local heap whose free list starts at `first`, its
+    /// 64-byte data block holding `blocks` (offset, next, size).
+    fn file_with_heap(first: u64, blocks: &[(usize, u64, u64)]) -> Vec<u8> {
+        let mut b = superblock_v0(0, None);
+        let heap = b.len() as u64;
+        b.extend_from_slice(LOCAL_HEAP);
+        for v in [64, first, heap + 32] {
+            b.extend_from_slice(&v.to_le_bytes());
+        }
+        let block = b.len();
+        b.resize(block + 64, 0);
+        for &(at, next, size) in blocks {
+            b[block + at..block + at + 8].copy_from_slice(&next.to_le_bytes());
+            b[block + at + 8..block + at + 16].copy_from_slice(&size.to_le_bytes());
+        }
+        let end = b.len() as u64;
+        b[40..48].copy_from_slice(&end.to_le_bytes());
+        b
+    }
+
+    #[test]
+    fn a_local_heap_whose_free_list_loops_is_refused() {
+        // HDF5 2.2 follows such a list forever, a node per step: 24 GB in two minutes.
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("heap.h5");
+        for (first, blocks, ok) in [
+            (FREE_NULL, vec![], true),
+            (8, vec![(8, FREE_NULL, 16)], true),
+            (8, vec![(8, 40, 16), (40, FREE_NULL, 16)], true),
+            (8, vec![(8, 8, 16)], false),
+            (8, vec![(8, 24, 16), (24, 40, 16), (40, 24, 16)], false),
+            // Lists HDF5 stops at by itself: a block past the data, a next of 0, a block
+            // longer than the data.
+            (8, vec![(8, 60, 16)], true),
+            (8, vec![(8, 0, 16)], true),
+            (8, vec![(8, 8, 100)], true),
+        ] {
+            std::fs::write(&p, file_with_heap(first, &blocks)).unwrap();
+            let r = check_declared_end(&p);
+            assert_eq!(r.is_ok(), ok, "{first} {blocks:?}: {r:?}");
+            if let Err(e) = r {
+                assert!(e.contains("local heap at byte 56") && e.contains("forever"), "{e}");
+            }
+        }
     }
 
     #[test]
