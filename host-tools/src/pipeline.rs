@@ -116,6 +116,9 @@ pub struct Views {
     pub views: Vec<View>,
     /// Where each view came from.
     pub origins: Vec<ViewOrigin>,
+    /// Per view, per point (as in `views`): how thick the circle's edge looked, the fit's
+    /// spread of events about it, px ([`GridPoint::spread_px`](crate::views::grid::GridPoint::spread_px)). Empty: not known.
+    pub spreads: Vec<Vec<f64>>,
     /// Per view: its grid was followed from the windows around it and holds fewer points
     /// than the finder asks of a grid of its own ([`FindOptions::min_fraction`]). Such a
     /// view is labelled right (its labels come from its neighbours), and its centres help
@@ -137,10 +140,11 @@ pub struct Views {
 
 /// The grid of one window as a view, with points at the sensor's border left out; also
 /// how many were.
-pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, usize) {
+pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, Vec<f64>, usize) {
     let [w, h] = setup.image_size.map(f64::from);
     let m = setup.edge_margin_px;
     let mut view = View { object: Vec::with_capacity(grid.points.len()), image: Vec::with_capacity(grid.points.len()) };
+    let mut spreads = Vec::with_capacity(grid.points.len());
     let mut at_edge = 0;
     for p in &grid.points {
         let [u, v] = p.image;
@@ -152,8 +156,9 @@ pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, usize) {
         }
         view.object.push(setup.pattern.object_point(p.index));
         view.image.push(p.image);
+        spreads.push(p.spread_px);
     }
-    (view, at_edge)
+    (view, spreads, at_edge)
 }
 
 /// Finds the grid in every window and makes views of it. `progress` is called with the
@@ -210,10 +215,11 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
                 if !partial {
                     radii.extend(radii_of(&g, &setup.pattern));
                 }
-                let (view, at_edge) = view_of(&g, setup);
+                let (view, spreads, at_edge) = view_of(&g, setup);
                 out.stats.points_at_edge += at_edge;
                 if view.object.len() >= needed {
                     out.views.push(view);
+                    out.spreads.push(spreads);
                     out.origins.push(ViewOrigin { window_seq: u64::from(w.seq), t_s });
                     out.partial.push(partial);
                 } else {
@@ -363,10 +369,18 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let setup = &Setup { calib: calib_opts, ..setup.clone() };
     let mut edge_shift = None;
     let mut shift_directions = Vec::new();
+    let mut alternative = None;
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
         let all = edge_shift::directions(&all_views, &views.origins);
         let dirs: Vec<Vec<[f64; 2]>> = selection.chosen.iter().map(|&i| all[i].clone()).collect();
+        let spreads: Vec<&[f64]> =
+            selection.chosen.iter().filter_map(|&i| views.spreads.get(i).map(|s| &s[..])).collect();
+        // The other model of the lag, solved as the chosen one is (see `ByThickness`).
+        alternative = edge_shift::scaled_by_thickness(&dirs, &spreads).and_then(|d| {
+            let s = edge_shift::estimate(&used, &d, setup.image_size, &setup.calib)?;
+            Some((edge_shift::shifted(&used, &d, s.px), d, s.px))
+        });
         edge_shift = edge_shift::estimate(&used, &dirs, setup.image_size, &setup.calib);
         if let Some(s) = edge_shift {
             used = edge_shift::shifted(&used, &dirs, s.px);
@@ -379,7 +393,21 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         shift_directions,
         ..setup.calib.clone()
     };
-    let calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
+    let mut calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
+    // What the views cannot tell apart is uncertain: the lag's other model's answer counts.
+    if let (Some(s), Some((views, dirs, px))) = (edge_shift.as_mut(), alternative) {
+        let opts = calib::Options { shift_directions: dirs, ..grouped.clone() };
+        if let Ok(alt) = calib::calibrate(&views, setup.image_size, &opts) {
+            let (a, b) = (alt.intrinsics.to_array(), calibration.intrinsics.to_array());
+            let change: [f64; 9] = std::array::from_fn(|i| a[i] - b[i]);
+            if change.iter().all(|c| c.is_finite()) {
+                for (sd, c) in calibration.std_dev.iter_mut().zip(change) {
+                    *sd = sd.hypot(c);
+                }
+                s.by_thickness = Some(edge_shift::ByThickness { px, change });
+            }
+        }
+    }
     // The shift's σ as a parameter of the final solve, where its scatter over the groups of
     // views counts too.
     if let (Some(s), Some(sd)) = (edge_shift.as_mut(), calibration.shift_std_px) {
@@ -395,7 +423,8 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
     let mut advice = advice(&calibration, &coverage);
-    advice.extend(focal_warning(&calibration, &coverage));
+    let lag = edge_shift.and_then(|s| s.by_thickness).map(|b| b.change);
+    advice.extend(focal_warning(&calibration, &coverage, lag.as_ref()));
     let failure = verdict(&calibration);
     Ok(Outcome {
         selection,
@@ -421,8 +450,9 @@ pub const FAILED_RELATIVE: f64 = 0.05;
 
 /// A warning when σ(fx) or σ(fy) exceeds [`FOCAL_WARN_RELATIVE`], with the motion that fixes
 /// the focal length: more tilt when the views lack it, else more of the sensor and more
-/// views.
-fn focal_warning(cal: &Calibration, coverage: &Coverage) -> Option<String> {
+/// views; and, when `lag` (what the edges' other lag model changes:
+/// [`edge_shift::ByThickness`]) is most of σ, light enough for quick pixels.
+fn focal_warning(cal: &Calibration, coverage: &Coverage, lag: Option<&[f64; 9]>) -> Option<String> {
     let k = &cal.intrinsics;
     let rel = (cal.std_dev[0] / k.fx.abs()).max(cal.std_dev[1] / k.fy.abs());
     (rel > FOCAL_WARN_RELATIVE).then(|| {
@@ -439,8 +469,16 @@ fn focal_warning(cal: &Calibration, coverage: &Coverage) -> Option<String> {
                 100.0 * coverage.covered
             )
         };
+        // Most of σ(fx) from the lag's model: the pixels are slow or the edges blurred.
+        let lag_note = match lag {
+            Some(c) if c[0].abs() > std::f64::consts::FRAC_1_SQRT_2 * cal.std_dev[0] => format!(
+                "; most of it is how late the edges were seen (taking the lag in proportion to each edge's thickness rather than as one distance moves fx by {:+.2} %): more light, or a sharper focus, makes the edges quicker and thinner",
+                100.0 * c[0] / k.fx.abs()
+            ),
+            _ => String::new(),
+        };
         format!(
-            "the focal length is weakly fixed: fx ±{:.2} %, fy ±{:.2} % (1σ; evcal aims at 0.1 %); {fix}",
+            "the focal length is weakly fixed: fx ±{:.2} %, fy ±{:.2} % (1σ; evcal aims at 0.1 %); {fix}{lag_note}",
             100.0 * cal.std_dev[0] / k.fx.abs(),
             100.0 * cal.std_dev[1] / k.fy.abs(),
         )
@@ -564,15 +602,84 @@ mod test {
         let views = calib::synthetic_views(&truth, 12, 0.02, 3);
         let mut cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
         let coverage = Coverage::of(&views.iter().collect::<Vec<_>>(), [346, 260]);
-        assert!(verdict(&cal).is_none() && focal_warning(&cal, &coverage).is_none(), "{:?}", cal.std_dev);
+        assert!(verdict(&cal).is_none() && focal_warning(&cal, &coverage, None).is_none(), "{:?}", cal.std_dev);
         cal.std_dev[0] = 0.004 * truth.fx;
-        let w = focal_warning(&cal, &coverage).expect("a warning");
-        assert!(w.contains("fx ±0.40 %") && w.contains("tilt"), "{w}");
+        let w = focal_warning(&cal, &coverage, None).expect("a warning");
+        assert!(w.contains("fx ±0.40 %") && w.contains("tilt") && !w.contains("late"), "{w}");
+        // Most of that σ from the lag's model: said, with what makes edges quicker.
+        let mut lag = [0.0; 9];
+        lag[0] = 0.0035 * truth.fx;
+        let w = focal_warning(&cal, &coverage, Some(&lag)).expect("a warning");
+        assert!(w.contains("how late the edges were seen") && w.contains("+0.35 %") && w.contains("more light"), "{w}");
+        lag[0] = 0.001 * truth.fx;
+        assert!(!focal_warning(&cal, &coverage, Some(&lag)).unwrap().contains("late"));
         assert!(verdict(&cal).is_none());
         cal.std_dev[0] = 1.27 * truth.fx;
         cal.std_dev[3] = f64::NAN;
         let why = verdict(&cal).expect("no calibration");
         assert!(why.contains("fx ±127.0 %") && why.contains("cy ±NaN px"), "{why}");
+    }
+
+    /// Centres that trail their circles by a distance in proportion to their edges'
+    /// thickness: the pipeline estimates both models of the lag, the thickness model finds
+    /// the distance put in, and the σ printed covers what choosing between them changes.
+    #[test]
+    fn the_lags_other_model_is_solved_and_counted_in_sigma() {
+        let truth = calib::Intrinsics {
+            fx: 330.0,
+            fy: 331.0,
+            cx: 170.0,
+            cy: 128.0,
+            k1: -0.3,
+            k2: 0.12,
+            p1: 0.0005,
+            p2: -0.0003,
+            k3: 0.0,
+        };
+        let n = 40;
+        let exact = calib::synthetic_views(&truth, n, 0.0, 3);
+        let origins: Vec<ViewOrigin> =
+            (0..n).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect();
+        // Thin and thick edges in turn, 0.2 and 0.6 px: the median is 0.6 or 0.2, and the
+        // lag is 0.5 px per px of thickness.
+        let spreads: Vec<Vec<f64>> =
+            exact.iter().map(|v| (0..v.image.len()).map(|i| if i % 2 == 0 { 0.2 } else { 0.6 }).collect()).collect();
+        let dirs = edge_shift::directions(&exact, &origins);
+        let lagging: Vec<View> = exact
+            .iter()
+            .zip(&dirs)
+            .zip(&spreads)
+            .map(|((v, d), s)| View {
+                object: v.object.clone(),
+                image: v
+                    .image
+                    .iter()
+                    .zip(d)
+                    .zip(s)
+                    .map(|((p, d), s)| [p[0] - 0.5 * s * d[0], p[1] - 0.5 * s * d[1]])
+                    .collect(),
+            })
+            .collect();
+        let views =
+            Views { views: lagging, origins, spreads: spreads.clone(), partial: vec![false; n], ..Views::default() };
+        let mut setup = Setup::new(Pattern::new(4, 11, 0.024).unwrap(), [346, 260]);
+        setup.smooth = None;
+        let o = calibrate_views(&views, &setup).expect("a calibration");
+        let shift = o.edge_shift.expect("a shift");
+        let alt = shift.by_thickness.expect("the thickness model solved too");
+        let all: Vec<f64> = spreads.iter().flatten().copied().collect();
+        let mut sorted = all.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        assert!((alt.px - 0.5 * median).abs() < 0.01, "{alt:?} (median thickness {median})");
+        for i in 0..4 {
+            assert!(alt.change[i].is_finite() && alt.change[i] != 0.0, "{alt:?}");
+            assert!(o.calibration.std_dev[i] >= alt.change[i].abs(), "{i}: {:?} vs {alt:?}", o.calibration.std_dev);
+        }
+        // The right model is the thickness one: its answer is the camera.
+        let k = o.calibration.intrinsics.to_array();
+        let fx_alt = k[0] + alt.change[0];
+        assert!((fx_alt / truth.fx - 1.0).abs() < 2e-4, "fx {fx_alt} under the thickness model");
     }
 
     #[test]

@@ -364,6 +364,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     let mut fit_gap: Vec<([f64; 2], [f64; 2], [f64; 2])> = Vec::new();
     let mut view_shifts: Vec<f64> = Vec::new();
     let mut per_view_moved: Vec<View> = Vec::new();
+    // Per view, per point of `detected`: the true image acceleration of its outline centre.
+    let mut accels: Vec<Vec<[f64; 2]>> = Vec::new();
     for r in &out.calibration.views {
         let v = &out.used[r.view];
         let t = t_of(out.used_origins[r.view].window_seq);
@@ -388,6 +390,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         let d = 0.5 * (lo + hi);
         delays.push(d);
         let (mut e0, mut e1, mut e2, mut e3) = (View::default(), View::default(), View::default(), View::default());
+        let mut view_acc = Vec::new();
         for (o, m) in v.object.iter().zip(&v.image) {
             let (Some((c, _)), Some(e), Some(later)) =
                 (true_centres(truth, k, o, t), outline(o, d), outline(o, d - 1e-3))
@@ -422,6 +425,12 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
                     sp * rr,
                 ]);
             }
+            view_acc.push(match outline(o, d + 1e-3) {
+                Some(earlier) => {
+                    [(later[0] - 2.0 * e[0] + earlier[0]) / 1e-6, (later[1] - 2.0 * e[1] + earlier[1]) / 1e-6]
+                }
+                None => [0.0, 0.0],
+            });
             fit_gap.push(([vx / n, vy / n], [f[0] - e[0], f[1] - e[1]], [m[0] - e[0], m[1] - e[1]]));
             e3.object.push(*o);
             e3.image.push(f);
@@ -464,6 +473,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             }
             per_view_moved.push(moved);
         }
+        accels.push(view_acc);
         exact.push(e0);
         fitted.push(e3);
         delayed.push(e1);
@@ -524,6 +534,90 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
                 1e3 * b2
             );
         }
+    }
+    for c in [2e-6, 5e-6, 1e-5, 2e-5] {
+        // A window's centre leans toward its path's centre of curvature by acceleration ×
+        // (the window's time spread)²: taken out with the true acceleration.
+        let moved: Vec<View> = detected
+            .iter()
+            .zip(&accels)
+            .map(|(v, acc)| View {
+                object: v.object.clone(),
+                image: v.image.iter().zip(acc).map(|(p, a)| [p[0] - c * a[0], p[1] - c * a[1]]).collect(),
+            })
+            .collect();
+        show(&format!("detected less {c:.0e} s² · true acceleration"), &moved, &plain);
+    }
+    {
+        // Does the imaged grid shrink or swell? Each residual's component away from its
+        // view's grid centroid, by how crowded the circle is (its nearest neighbour's image
+        // distance) and whether it is on the grid's rim (fewer than 4 neighbours within 1.6
+        // nearest-neighbour distances): neighbouring circles' events in a fit's tails would
+        // pull rim circles inward, more as the board recedes.
+        // (outward residual, 1 / gap, on the rim, outward unit vector)
+        type Row = (f64, f64, bool, [f64; 2]);
+        let mut rows: Vec<Row> = Vec::new();
+        for (t, m) in delayed.iter().zip(&detected) {
+            let n = t.image.len();
+            if n < 6 {
+                continue;
+            }
+            let c = t.image.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+            let dist = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+            for i in 0..n {
+                let p = t.image[i];
+                let mut ds: Vec<f64> = (0..n).filter(|&j| j != i).map(|j| dist(p, t.image[j])).collect();
+                ds.sort_by(f64::total_cmp);
+                let nn = ds[0];
+                let rim = ds.iter().filter(|&&d| d < 1.6 * nn).count() < 4;
+                let o = [p[0] - c[0], p[1] - c[1]];
+                let on = o[0].hypot(o[1]).max(1e-9);
+                let u = [o[0] / on, o[1] / on];
+                let r = [m.image[i][0] - p[0], m.image[i][1] - p[1]];
+                rows.push((r[0] * u[0] + r[1] * u[1], 1.0 / nn, rim, u));
+            }
+        }
+        let mean = |f: &dyn Fn(&Row) -> bool| {
+            let v: Vec<f64> = rows.iter().filter(|r| f(r)).map(|r| r.0).collect();
+            (v.iter().sum::<f64>() / v.len().max(1) as f64, v.len())
+        };
+        let (rim_m, rim_n) = mean(&|r| r.2);
+        let (in_m, in_n) = mean(&|r| !r.2);
+        // outward = a + b / gap, least squares
+        let (mut sx, mut sy, mut sxx, mut sxy) = (0.0, 0.0, 0.0, 0.0);
+        for r in &rows {
+            sx += r.1;
+            sy += r.0;
+            sxx += r.1 * r.1;
+            sxy += r.1 * r.0;
+        }
+        let nr = rows.len().max(1) as f64;
+        let b = (sxy - sx * sy / nr) / (sxx - sx * sx / nr).max(1e-18);
+        let a = (sy - b * sx) / nr;
+        println!(
+            "    residual away from the grid's centroid: rim circles {rim_m:+.4} px ({rim_n}), inner {in_m:+.4} px ({in_n}); = {a:+.4} px {b:+.3} px² / gap"
+        );
+        let mut k = 0;
+        let moved: Vec<View> = detected
+            .iter()
+            .zip(&delayed)
+            .map(|(m, t)| {
+                if t.image.len() < 6 {
+                    return m.clone();
+                }
+                let image = m
+                    .image
+                    .iter()
+                    .map(|p| {
+                        let (res, _, _, u) = rows[k];
+                        k += 1;
+                        [p[0] - res * u[0], p[1] - res * u[1]]
+                    })
+                    .collect();
+                View { object: m.object.clone(), image }
+            })
+            .collect();
+        show("detected less each residual's component away from the grid's centroid", &moved, &plain);
     }
     show("outline circle-fitted across the motion at the best delay, outlines modelled", &fitted, &plain);
     {
@@ -588,6 +682,21 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         sums[2] / n,
         (sums[3] / n).sqrt()
     );
+    {
+        // Only the mean of the across-motion residual: a constant shift to one side of the
+        // motion, as a curved path or a lag that is not symmetric about the motion would give.
+        let mean_c = sums[2] / n;
+        let mut shifted = delayed.clone();
+        let mut j = 0;
+        for v in shifted.iter_mut() {
+            for p in v.image.iter_mut() {
+                let ([ux, uy], _) = motion[j];
+                j += 1;
+                *p = [p[0] - mean_c * uy, p[1] + mean_c * ux];
+            }
+        }
+        show(&format!("truth at the delay plus a constant {mean_c:+.4} px across the motion"), &shifted, &plain);
+    }
     show("truth at the delay plus the residual along the motion only", &along, &plain);
     show("truth at the delay plus the residual across the motion only", &across, &plain);
 }

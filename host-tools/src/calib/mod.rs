@@ -160,7 +160,9 @@ pub struct Calibration {
     pub median_view_px: f64,
     /// One standard deviation of each parameter (0 for a fixed one), in the order of
     /// [`PARAMETER_NAMES`]: the larger of `std_dev_points` and, when the views were grouped
-    /// ([`Options::view_groups`]), of what the scatter of the groups says.
+    /// ([`Options::view_groups`]), of what the scatter of the groups says. The pipeline adds
+    /// to it what the edges' other lag model changes
+    /// ([`ByThickness`](crate::views::edge_shift::ByThickness)).
     pub std_dev: [f64; 9],
     /// The standard deviations as if every point's error were independent of every other's
     /// (the residual variance times the inverse normal matrix, as OpenCV reports them).

@@ -46,6 +46,60 @@ pub struct EdgeShift {
     pub std_px: f64,
     /// Points with a direction of motion, over the views used.
     pub points: usize,
+    /// The other model of the same lag, and what choosing it would change.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub by_thickness: Option<ByThickness>,
+}
+
+/// The shift taken in proportion to how thick each circle's edge looked, instead of one
+/// distance for every circle ([`scaled_by_thickness`]), solved in the same way.
+///
+/// Both are models of one effect. An ideal pixel's events sit a fixed way into an edge's
+/// blurred profile; a slow pixel's trail a dark circle's leading edge by a smear whose
+/// length grows with the edge's own blur and with how long the pixel takes to settle. The
+/// first reads as one distance, the second as a distance in proportion to the thickness of
+/// the edge (the circle fit's spread of events about it, which blur and smear widen alike).
+/// Real edges lie between the two, and a constant tuned between them would be tuned to a
+/// sensor; where the two give different intrinsics, the views cannot tell which is right,
+/// so the difference is counted in the printed σ.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct ByThickness {
+    /// The shift at the median thickness, px.
+    pub px: f64,
+    /// Each parameter's value under this model less its value under one distance, in the
+    /// order of [`calib::PARAMETER_NAMES`].
+    pub change: [f64; 9],
+}
+
+/// `dirs` with each point's direction scaled by its edge's thickness (`spreads`, px, in the
+/// same layout) over the median thickness, so that a shift of `s` moves a point of median
+/// thickness by `s`. `None` when the layouts differ or no thickness is known; a point
+/// without a usable thickness keeps its direction.
+pub fn scaled_by_thickness(dirs: &[Vec<[f64; 2]>], spreads: &[&[f64]]) -> Option<Vec<Vec<[f64; 2]>>> {
+    if dirs.len() != spreads.len() || dirs.iter().zip(spreads).any(|(d, s)| d.len() != s.len()) {
+        return None;
+    }
+    let usable = |s: f64| s.is_finite() && s > 0.0;
+    let mut all: Vec<f64> = spreads.iter().flat_map(|s| s.iter().copied()).filter(|&s| usable(s)).collect();
+    if all.is_empty() {
+        return None;
+    }
+    let mid = all.len() / 2;
+    let median = *all.select_nth_unstable_by(mid, f64::total_cmp).1;
+    Some(
+        dirs.iter()
+            .zip(spreads)
+            .map(|(d, s)| {
+                d.iter()
+                    .zip(s.iter())
+                    .map(|(d, &s)| {
+                        let f = if usable(s) { s / median } else { 1.0 };
+                        [d[0] * f, d[1] * f]
+                    })
+                    .collect()
+            })
+            .collect(),
+    )
 }
 
 /// Each point's direction of motion: the unit vector from where its board point was in the
@@ -152,7 +206,7 @@ pub fn estimate(
     }
     // Residual variance per coordinate; the cost is a sum of squares, so var = 2σ²/curvature.
     let sigma2 = f0 / (2.0 * total as f64).max(1.0);
-    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points })
+    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points, by_thickness: None })
 }
 
 /// Points further than [`TRIM_RMS`] times the solve's RMS from their reprojection are left

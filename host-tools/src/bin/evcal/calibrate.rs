@@ -361,6 +361,16 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             s.std_px,
             s.points
         )?;
+        if let Some(b) = &s.by_thickness {
+            let k = c.intrinsics;
+            outln!(
+                "  the same lag in proportion to each edge's thickness instead ({:+.3} px at the median): fx {:+.3} %, cx {:+.2} px, cy {:+.2} px; counted in the σ below",
+                b.px,
+                100.0 * b.change[0] / k.fx.abs(),
+                b.change[2],
+                b.change[3]
+            )?;
+        }
     }
     if let Some(r) = c.circle_radius_m {
         let how = if setup.circle_radius.is_some() { "as given" } else { "estimated from the fitted radii" };

@@ -68,6 +68,8 @@ pub struct GridPoint {
     pub image: [f64; 2],
     /// Radius of the fitted circle, px.
     pub radius_px: f64,
+    /// How thick its edge looked: the fit's weighted spread of events about the circle, px.
+    pub spread_px: f64,
 }
 
 /// The grid found in one window.
@@ -146,6 +148,7 @@ impl Default for FindOptions {
 struct Pt {
     p: [f64; 2],
     r: f64,
+    spread: f64,
 }
 
 /// Most seeds tried before giving up.
@@ -163,7 +166,7 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
         .iter()
         .filter(|c| c.u.is_finite() && c.v.is_finite() && c.r.is_finite() && c.r > 0.0)
         .filter(|c| c.u.abs() < 1e6 && c.v.abs() < 1e6 && c.r < 1e6)
-        .map(|c| Pt { p: [f64::from(c.u), f64::from(c.v)], r: f64::from(c.r) })
+        .map(|c| Pt { p: [f64::from(c.u), f64::from(c.v)], r: f64::from(c.r), spread: f64::from(c.spread) })
         .collect();
     if pts.len() < needed {
         return Err(Miss::TooFewCentres);
@@ -197,8 +200,10 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
     let kept: std::collections::HashSet<usize> = labels.iter().map(|&(_, k)| k).collect();
     let lattice: HashMap<Cell, usize> = lattice.into_iter().filter(|(_, k)| kept.contains(k)).collect();
     check_smooth(&pts, &lattice)?;
-    let mut points: Vec<GridPoint> =
-        labels.iter().map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r }).collect();
+    let mut points: Vec<GridPoint> = labels
+        .iter()
+        .map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r, spread_px: pts[k].spread })
+        .collect();
     points.sort_by_key(|g| g.index);
     let homography_rms_px = homography_check(&points, pattern)?;
     Ok(GridDetection { points, homography_rms_px })
