@@ -677,6 +677,29 @@ fn hdf5_metadata_declared_beyond_the_file_is_refused_in_bounded_memory() {
 }
 
 #[test]
+fn an_hdf5_local_heap_whose_free_list_loops_is_refused_in_bounded_memory() {
+    // The read_h5 fuzz target's 40 kB file made evcal take 24 GB in two minutes: HDF5 2.2
+    // follows a local heap's free list until it ends, a node per step. The fixture's root
+    // group heap, its free list made to name itself.
+    let mut b = std::fs::read(fixture("ecalib.h5")).unwrap();
+    let at = b.windows(8).position(|w| w == b"HEAP\0\0\0\0").expect("the root group's local heap");
+    let word = |b: &[u8], i: usize| u64::from_le_bytes(b[i..i + 8].try_into().unwrap());
+    let (size, first, block) = (word(&b, at + 8), word(&b, at + 16), word(&b, at + 24) as usize);
+    assert!(first > 1 && first + 16 <= size, "h5py leaves free space in the heap: {first} of {size}");
+    let free = block + first as usize;
+    b[free..free + 8].copy_from_slice(&first.to_le_bytes());
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("loop.h5");
+    std::fs::write(&p, b).unwrap();
+    let (code, _, err) = evcal_limited(400_000, &["info", s(&p)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("loop.h5") && err.contains(&format!("local heap at byte {at}")) && err.contains("forever"),
+        "{err}"
+    );
+}
+
+#[test]
 fn blosc_parameters_that_misstate_the_chunk_size_are_refused() {
     // HDF5 1.10 copies a whole chunk from whatever a filter returns; the Blosc filter holds
     // each decoded chunk to the size its parameters state, so that size must be the chunk's.
