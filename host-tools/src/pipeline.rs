@@ -321,11 +321,22 @@ impl fmt::Display for PipelineError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             PipelineError::NoGrid(s) if s.windows == 0 => write!(f, "no detection windows to look for the grid in"),
-            PipelineError::NoGrid(s) => write!(
-                f,
-                "{}: check --pattern (ROWSxCOLS as the board is printed) and that the board is in view",
-                s.summary()
-            ),
+            PipelineError::NoGrid(s) => {
+                write!(
+                    f,
+                    "{}: check --pattern (ROWSxCOLS as the board is printed) and that the board is in view",
+                    s.summary()
+                )?;
+                // Most windows short of circles: the rings themselves were not there.
+                let short = s.misses.get(&Miss::TooFewCentres).copied().unwrap_or(0);
+                if 2 * short > s.windows {
+                    write!(
+                        f,
+                        "; in {short} windows the core found fewer circles than the grid has, so the circles did not show as clean rings of events: in dim light the pixels answer slowly and smear each edge over many pixels (more light helps most), and a board out of focus, moving too fast to follow or barely moving does the same"
+                    )?;
+                }
+                Ok(())
+            }
             PipelineError::Calib(e) => write!(f, "{e}"),
         }
     }
@@ -690,6 +701,13 @@ mod test {
         let e = calibrate_views(&v, &setup).unwrap_err();
         assert!(matches!(e, PipelineError::NoGrid(_)));
         assert!(e.to_string().contains("grid found in 0 of 3 windows"), "{e}");
+        assert!(!e.to_string().contains("dim light"), "the grid is there, the pattern wrong: {e}");
+        // Windows short of circles (a dim scene's slow pixels): said, with what helps.
+        let mut stats = GridStats { windows: 10, ..GridStats::default() };
+        stats.misses.insert(Miss::TooFewCentres, 6);
+        stats.misses.insert(Miss::NoLattice, 4);
+        let dim = PipelineError::NoGrid(stats).to_string();
+        assert!(dim.contains("in 6 windows the core found fewer circles") && dim.contains("more light"), "{dim}");
         let none = calibrate_views(&Views::default(), &setup).unwrap_err();
         assert!(none.to_string().contains("no detection windows"), "{none}");
     }
