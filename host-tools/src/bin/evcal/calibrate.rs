@@ -90,6 +90,8 @@ pub struct SolveArgs {
     /// their circles along the motion (a DVS pixel fires late inside a blurred edge: about a
     /// tenth of a pixel, which biases the focal length when the board comes and goes) and
     /// moves them forward by that much first; the amount is printed and in the JSON result.
+    /// It also solves the lag as a distance in proportion to each circle's edge thickness
+    /// (slow, dim pixels smear thick edges more) and counts what that changes in each σ.
     #[arg(long)]
     pub no_edge_shift: bool,
     /// Solve on each window's centres alone. By default each board point's centre in a view
