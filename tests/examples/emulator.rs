@@ -165,6 +165,35 @@ fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u:
     Some([c0[0] - 0.5 * s[0], c0[1] - 0.5 * s[1]])
 }
 
+/// The centre of the conic fitted to the outline of board point `o` at `t` by the core's
+/// algebraic fit (rows x² − y², xy, x, y, 1; target −y²), its points weighted by arc length
+/// times |motion · normal| when `u` is given, else by arc length alone.
+fn conic_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: Option<[f64; 2]>) -> Option<[f64; 2]> {
+    let n = 256;
+    let (_, pts) = true_outline(truth, k, o, t, n)?;
+    let c0 = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+    let mut m = nalgebra::Matrix5::<f64>::zeros();
+    let mut b = nalgebra::Vector5::<f64>::zeros();
+    for j in 0..n {
+        let (p, q) = (pts[(j + n - 1) % n], pts[(j + 1) % n]);
+        let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
+        let ds = tx.hypot(ty) * 0.5;
+        let w = match u {
+            Some(u) => ds * ((u[0] * ty - u[1] * tx).abs() / (2.0 * ds).max(1e-12)),
+            None => ds,
+        };
+        let (x, y) = (pts[j][0] - c0[0], pts[j][1] - c0[1]);
+        let row = nalgebra::Vector5::new(x * x - y * y, x * y, x, y, 1.0);
+        m += w * row * row.transpose();
+        b += w * row * (-(y * y));
+    }
+    let s = m.lu().solve(&b)?;
+    let (a, bxy, d, e) = (s[0], s[1], s[2], s[3]);
+    let c = 1.0 - a;
+    let det = 4.0 * a * c - bxy * bxy;
+    Some([c0[0] + (bxy * e - 2.0 * c * d) / det, c0[1] + (bxy * d - 2.0 * a * e) / det])
+}
+
 /// How the detection of an experiment differs from `evcal calibrate`'s.
 #[derive(Default, Clone, Copy)]
 struct Experiment {
@@ -360,6 +389,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     let mut motion: Vec<([f64; 2], [f64; 2])> = Vec::new();
     let mut delays = Vec::new();
     let mut fitted = Vec::new();
+    let (mut conic_u, mut conic_plain) = (Vec::new(), Vec::new());
+    let mut radial_bins = [[0.0f64; 4]; 8];
     let mut feats: Vec<[f64; 9]> = Vec::new();
     let mut fit_gap: Vec<([f64; 2], [f64; 2], [f64; 2])> = Vec::new();
     let mut view_shifts: Vec<f64> = Vec::new();
@@ -390,6 +421,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         let d = 0.5 * (lo + hi);
         delays.push(d);
         let (mut e0, mut e1, mut e2, mut e3) = (View::default(), View::default(), View::default(), View::default());
+        let (mut e4, mut e5) = (View::default(), View::default());
         let mut view_acc = Vec::new();
         for (o, m) in v.object.iter().zip(&v.image) {
             let (Some((c, _)), Some(e), Some(later)) =
@@ -401,6 +433,21 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             let n = vx.hypot(vy).max(1e-12);
             motion.push(([vx / n, vy / n], [m[0] - e[0], m[1] - e[1]]));
             let f = fitted_outline_centre(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(e);
+            {
+                let (rx, ry) = (e[0] - k.cx, e[1] - k.cy);
+                let rho = rx.hypot(ry).max(1e-9);
+                let res_r = ((m[0] - e[0]) * rx + (m[1] - e[1]) * ry) / rho;
+                let res_t = (-(m[0] - e[0]) * ry + (m[1] - e[1]) * rx) / rho;
+                let b = ((rho / 40.0) as usize).min(7);
+                radial_bins[b][0] += 1.0;
+                radial_bins[b][1] += res_r;
+                radial_bins[b][2] += res_t;
+                radial_bins[b][3] += res_r * res_r;
+            }
+            e4.object.push(*o);
+            e4.image.push(conic_outline_centre(truth, k, o, t - d, Some([vx / n, vy / n])).unwrap_or(e));
+            e5.object.push(*o);
+            e5.image.push(conic_outline_centre(truth, k, o, t - d, None).unwrap_or(e));
             if let Some(earlier) = outline(o, d + 1e-3) {
                 // Image velocity (px/s) and acceleration (px/s²) of the outline centre.
                 let vel = [(later[0] - earlier[0]) / 2e-3, (later[1] - earlier[1]) / 2e-3];
@@ -476,6 +523,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         accels.push(view_acc);
         exact.push(e0);
         fitted.push(e3);
+        conic_u.push(e4);
+        conic_plain.push(e5);
         delayed.push(e1);
         detected.push(e2);
     }
@@ -489,6 +538,22 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     show("true outline centres at each view's best delay, solved as centres", &delayed, &centre_only);
     show("true outline centres at each view's best delay, outlines modelled", &delayed, &plain);
     show("detected, outlines modelled", &detected, &plain);
+    for (i, b) in radial_bins.iter().enumerate() {
+        if b[0] > 0.0 {
+            let n = b[0];
+            println!(
+                "    image radius {:3}-{:3} px: {:5} points, residual radial {:+.4} px (± {:.4}), tangential {:+.4}",
+                40 * i,
+                40 * i + 40,
+                n,
+                b[1] / n,
+                ((b[3] / n - (b[1] / n).powi(2)).max(0.0) / n).sqrt(),
+                b[2] / n
+            );
+        }
+    }
+    show("true outline, conic-fitted (weights |motion · normal|), outlines modelled", &conic_u, &plain);
+    show("true outline, conic-fitted (uniform weights), outlines modelled", &conic_plain, &plain);
     {
         // Least squares: residual = a + b·x + c·y over the features.
         let ls = |yi: usize, xs: &[usize]| {

@@ -172,6 +172,20 @@ pub(crate) fn project(k: &Intrinsics, pose: &Pose, object: &[f64; 3]) -> Option<
 /// outline's for a circle of 10 px tilted by 0.3 rad (32 corners: 5e-4 px).
 const OUTLINE_CORNERS: usize = 128;
 
+/// The unit circle's [`OUTLINE_CORNERS`] corners, `(cos, sin)`: computed once, since every
+/// point of every solve projects them (their sines and cosines were a tenth of `evcal
+/// demo`'s time).
+fn unit_corners() -> &'static [[f64; 2]; OUTLINE_CORNERS] {
+    static CORNERS: std::sync::OnceLock<[[f64; 2]; OUTLINE_CORNERS]> = std::sync::OnceLock::new();
+    CORNERS.get_or_init(|| {
+        let step = std::f64::consts::TAU / OUTLINE_CORNERS as f64;
+        std::array::from_fn(|j| {
+            let a = step * j as f64;
+            [a.cos(), a.sin()]
+        })
+    })
+}
+
 /// How far the centre of a circle's image lies from the image of its centre, px: the circle
 /// of `radius` (metres) around board point `centre`, seen through `pose` and `k`.
 ///
@@ -183,10 +197,10 @@ pub fn outline_offset(k: &Intrinsics, pose: &Pose, centre: &[f64; 3], radius: f6
     let at = |x: f64, y: f64| k.project(&(pose.rotation * Vector3::new(x, y, centre[2]) + pose.translation));
     let c = at(centre[0], centre[1])?;
     let (mut area, mut sx, mut sy) = (0.0, 0.0, 0.0);
-    let step = std::f64::consts::TAU / OUTLINE_CORNERS as f64;
+    let unit = unit_corners();
     let corner = |j: usize| {
-        let a = step * j as f64;
-        at(centre[0] + radius * a.cos(), centre[1] + radius * a.sin()).map(|p| [p[0] - c[0], p[1] - c[1]])
+        let [cos, sin] = unit[j];
+        at(centre[0] + radius * cos, centre[1] + radius * sin).map(|p| [p[0] - c[0], p[1] - c[1]])
     };
     let first = corner(0)?;
     let mut prev = first;

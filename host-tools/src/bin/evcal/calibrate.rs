@@ -79,9 +79,11 @@ pub struct SolveArgs {
     /// set aside.
     #[arg(long)]
     pub no_robust: bool,
-    /// A view is kept only if its points moved at least this far (RMS, px) from every kept
-    /// view: consecutive windows are near-duplicates.
-    #[arg(long, default_value_t = 2.0, value_name = "PX")]
+    /// Leave out a view whose points moved less than this (RMS, px) from a kept view. 0, the
+    /// default, keeps every window's view: no two windows share an event, so each is a
+    /// measurement of its own even where the board barely moved, and keeping them all
+    /// tightens a slow motion's σ. Raise it (e.g. 2) only to solve faster.
+    #[arg(long, default_value_t = 0.0, value_name = "PX")]
     pub min_change_px: f64,
     /// Most views solved from (evenly thinned beyond it).
     #[arg(long, default_value_t = 500)]

@@ -61,8 +61,7 @@ enum Command {
     /// Calibrate from a recording (the detection core runs over it first) or from detections
     /// collected earlier (JSON lines from `evcal detect`, `replay` or `collect`).
     ///
-    /// Finds the grid in every window, keeps well-spread views (consecutive windows are
-    /// near-duplicates), solves fx, fy, cx, cy and k1, k2, p1, p2, k3 (OpenCV's model) with
+    /// Finds the grid in every window, keeps a view from each (up to --max-views), solves fx, fy, cx, cy and k1, k2, p1, p2, k3 (OpenCV's model) with
     /// the views' poses, sets aside views that do not fit (each with its reason), and says what
     /// the views leave uncovered. Writes into --out:
     ///   calibration.json      the result for programs: fx, fy, cx, cy, k1, k2, p1, p2, k3,
