@@ -6,7 +6,8 @@
 //! (default: davis346, 8 s per case; each case is a continuous simulation, about a minute
 //! of CPU for 8 s of a DAVIS346, so the whole sweep takes a while: `--cache DIR` keeps each
 //! case's detection windows for a rerun of the host's steps). `--cases` lists the cases
-//! without running them.
+//! without running them; `--only TEXT` (repeatable) runs only the cases whose table row
+//! names TEXT (`--only "cone | good | 300 Hz"`), for a large sensor's slower cases.
 //!
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
 //! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
@@ -17,6 +18,15 @@ fn main() {
     let mut argv: Vec<String> = std::env::args().skip(1).collect();
     let cache = args::take_cache(&mut argv);
     let list_only = argv.iter().position(|a| a == "--cases").map(|i| argv.remove(i)).is_some();
+    let mut only = Vec::new();
+    while let Some(i) = argv.iter().position(|a| a == "--only") {
+        let Some(text) = argv.get(i + 1).cloned() else {
+            eprintln!("--only needs the text of the rows to run");
+            std::process::exit(2);
+        };
+        only.push(text);
+        argv.drain(i..i + 2);
+    }
     let mut seconds = 8.0;
     if let Some(i) = argv.iter().position(|a| a == "--seconds") {
         match argv.get(i + 1).and_then(|s| s.parse::<f64>().ok()) {
@@ -29,8 +39,8 @@ fn main() {
         argv.drain(i..i + 2);
     }
     let sensors = if argv.is_empty() { vec!["davis346".to_string()] } else { argv };
-    println!("| sensor | motion | light | photoreceptor | focus | fx error | fy error | cx error | cy error | error / σ (fx, fy, cx, cy) | RMS | views | targets |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| sensor | motion | light | photoreceptor | focus | threshold, noise | fx error | fy error | cx error | cy error | error / σ (fx, fy, cx, cy) | RMS | views | targets |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let mut missed = 0;
     for sensor in &sensors {
         for c in sweep::cases() {
@@ -39,15 +49,30 @@ fn main() {
                 std::process::exit(2);
             }
             let (hz, focus) = (c.photoreceptor(), c.focus());
-            let label =
-                format!("| {sensor} {} | {} | {} | {hz} | {focus} |", c.pattern(), c.trajectory.name(), c.light.name());
+            let label = format!(
+                "| {sensor} {} | {} | {} | {hz} | {focus} | {} |",
+                c.pattern(),
+                c.trajectory.name(),
+                c.light.name(),
+                c.pixel()
+            );
+            if !only.is_empty() && !only.iter().any(|t| label.contains(t.as_str())) {
+                continue;
+            }
             if list_only {
                 println!("{label} | | | | | | | | |");
                 continue;
             }
+            // The base grid's names as they were before the threshold and noise were swept,
+            // so that caches written then still serve.
+            let pixel = if c.threshold.is_none() && c.noise == sweep::Noise::Preset {
+                String::new()
+            } else {
+                format!("_{}", c.pixel().replace([' ', ',', '±'], ""))
+            };
             let file = cache.as_ref().map(|d| {
                 d.join(format!(
-                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}_{seconds}.json",
+                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}{pixel}_{seconds}.json",
                     c.pattern(),
                     c.trajectory.name(),
                     c.light.name()

@@ -21,6 +21,35 @@ pub struct Case {
     pub photoreceptor_hz: f64,
     /// Edge blur at the focus distance, px, when out of focus (`None`: the preset's focus).
     pub blur_px: Option<f64>,
+    /// Contrast threshold and its pixel-to-pixel mismatch (σ), log units, when not the
+    /// light's (0.25, mismatch 0.03 in good light, 0.04 in low).
+    pub threshold: Option<(f64, f64)>,
+    /// The noise the pixels add.
+    pub noise: Noise,
+}
+
+/// How noisy a case's pixels are.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Noise {
+    /// `PixelModel::physical`'s: leak events at 0.1 Hz a pixel, shot noise at 1 Hz in the
+    /// dark, the light's background activity and hot pixels.
+    Preset,
+    /// None at all: no leak, shot noise, background activity or hot pixels.
+    Clean,
+    /// A dim room's: leak events at 0.5 Hz a pixel and shot noise at 5 Hz in the dark (v2e's
+    /// noisy settings are of this order), the light's background and hot pixels.
+    DimRoom,
+}
+
+impl Noise {
+    /// Name in the table.
+    pub fn name(self) -> &'static str {
+        match self {
+            Noise::Preset => "preset",
+            Noise::Clean => "clean",
+            Noise::DimRoom => "dim room",
+        }
+    }
 }
 
 impl Case {
@@ -47,11 +76,39 @@ impl Case {
         self.blur_px.map_or_else(|| "in".into(), |b| format!("out ({b} px)"))
     }
 
+    /// The threshold and noise column of the table.
+    pub fn pixel(&self) -> String {
+        let t = self.threshold.map_or_else(|| "θ preset".into(), |(t, m)| format!("θ {t} ± {m}"));
+        format!("{t}, noise {}", self.noise.name())
+    }
+
+    /// A case of the base grid: the light's threshold, the preset noise, in focus.
+    pub const fn base(trajectory: Trajectory, light: Light, photoreceptor_hz: f64) -> Self {
+        Self { trajectory, light, photoreceptor_hz, blur_px: None, threshold: None, noise: Noise::Preset }
+    }
+
     /// The simulator's configuration of the case on `sensor` (seed 5), and its grid; `None`
     /// for an unknown sensor.
     pub fn config(&self, sensor: &str) -> Option<(SimConfig, Pattern)> {
         let mut cfg = SimConfig::preset(sensor, self.pattern(), self.trajectory, self.light, 5)?;
         cfg.pixel = PixelModel::physical(self.light, self.photoreceptor_hz);
+        if let Some((t, m)) = self.threshold {
+            cfg.pixel.threshold = t;
+            cfg.pixel.mismatch = m;
+        }
+        match self.noise {
+            Noise::Preset => {}
+            Noise::Clean => {
+                cfg.pixel.leak_hz = 0.0;
+                cfg.pixel.shot_noise_hz = 0.0;
+                cfg.pixel.background_hz = 0.0;
+                cfg.pixel.hot_fraction = 0.0;
+            }
+            Noise::DimRoom => {
+                cfg.pixel.leak_hz = 0.5;
+                cfg.pixel.shot_noise_hz = 5.0;
+            }
+        }
         if let Some(b) = self.blur_px {
             cfg.blur_px = b;
         }
@@ -61,7 +118,8 @@ impl Case {
 
     /// What the case is held to: the figure for its kind of scene.
     pub fn targets(&self) -> Targets {
-        let tilting = self.trajectory != Trajectory::Spiral;
+        // The square keeps the board parallel to the sensor: as little tilt as the spiral.
+        let tilting = self.trajectory == Trajectory::Cone;
         match (self.light, self.blur_px.is_some()) {
             (_, true) => Targets { focal_pct: 0.5, centre_px: 2.0 },
             (Light::Good, false) => Targets { focal_pct: 0.1, centre_px: 0.5 },
@@ -71,20 +129,34 @@ impl Case {
     }
 }
 
-/// Every case of the sweep: photoreceptor cutoff at full light unlimited, 1000, 300 and
-/// 100 Hz; good and low light; cone and spiral; in focus, and out of focus (edge blur 2.5 px
-/// at the focus distance) for the good-light cone at 300 Hz. Thresholds, mismatch, leak and
-/// shot noise are those of `PixelModel::physical` for the light.
+/// Every case of the sweep. The base grid: photoreceptor cutoff at full light unlimited,
+/// 1000, 300 and 100 Hz; good and low light; cone and spiral, with the light's threshold and
+/// `PixelModel::physical`'s noise. Around it, one thing changed at a time from a pixel of
+/// 300 Hz: out of focus (edge blur 2.5 px at the focus distance) on the good-light cone and
+/// spiral; the square motion (the board parallel to the sensor, its grid along the sensor's
+/// edges) in good and low light; thresholds of 0.15 and 0.5 with mismatch (the cone in good
+/// light; 0.5 also on the spiral); no noise at all, and a dim room's noise (the cone in low
+/// light; the spiral in low light too).
 pub fn cases() -> Vec<Case> {
+    use {Light::*, Trajectory::*};
     let mut out = Vec::new();
-    for light in [Light::Good, Light::Low] {
-        for trajectory in [Trajectory::Cone, Trajectory::Spiral] {
+    for light in [Good, Low] {
+        for trajectory in [Cone, Spiral] {
             for hz in [f64::INFINITY, 1000.0, 300.0, 100.0] {
-                out.push(Case { trajectory, light, photoreceptor_hz: hz, blur_px: None });
+                out.push(Case::base(trajectory, light, hz));
             }
         }
     }
-    out.push(Case { trajectory: Trajectory::Cone, light: Light::Good, photoreceptor_hz: 300.0, blur_px: Some(2.5) });
+    out.push(Case { blur_px: Some(2.5), ..Case::base(Cone, Good, 300.0) });
+    out.push(Case { blur_px: Some(2.5), ..Case::base(Spiral, Good, 300.0) });
+    out.push(Case::base(Square, Good, 300.0));
+    out.push(Case::base(Square, Low, 300.0));
+    out.push(Case { threshold: Some((0.15, 0.02)), ..Case::base(Cone, Good, 300.0) });
+    out.push(Case { threshold: Some((0.5, 0.06)), ..Case::base(Cone, Good, 300.0) });
+    out.push(Case { threshold: Some((0.5, 0.06)), ..Case::base(Spiral, Good, 300.0) });
+    out.push(Case { noise: Noise::Clean, ..Case::base(Cone, Low, 300.0) });
+    out.push(Case { noise: Noise::DimRoom, ..Case::base(Cone, Low, 300.0) });
+    out.push(Case { noise: Noise::DimRoom, ..Case::base(Spiral, Low, 300.0) });
     out
 }
 

@@ -16,15 +16,15 @@ fn hold(case: Case) {
 
 #[test]
 fn spiral_good_light_300_hz() {
-    hold(Case { trajectory: Trajectory::Spiral, light: Light::Good, photoreceptor_hz: 300.0, blur_px: None });
+    hold(Case::base(Trajectory::Spiral, Light::Good, 300.0));
 }
 
 #[test]
 fn cone_low_light_1000_hz() {
-    hold(Case { trajectory: Trajectory::Cone, light: Light::Low, photoreceptor_hz: 1000.0, blur_px: None });
+    hold(Case::base(Trajectory::Cone, Light::Low, 1000.0));
 }
 
 #[test]
 fn cone_good_light_300_hz_out_of_focus() {
-    hold(Case { trajectory: Trajectory::Cone, light: Light::Good, photoreceptor_hz: 300.0, blur_px: Some(2.5) });
+    hold(Case { blur_px: Some(2.5), ..Case::base(Trajectory::Cone, Light::Good, 300.0) });
 }
