@@ -8,6 +8,8 @@
 //! case's detection windows for a rerun of the host's steps). `--cases` lists the cases
 //! without running them; `--only TEXT` (repeatable) runs only the cases whose table row
 //! names TEXT (`--only "cone | good | 300 Hz"`), for a large sensor's slower cases.
+//! `--lag` prints, under each case's row, how far its centres lag their circles along the
+//! motion at each image speed, against the simulator's truth (`sweep::lag_by_speed`).
 //!
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
 //! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
@@ -18,6 +20,7 @@ fn main() {
     let mut argv: Vec<String> = std::env::args().skip(1).collect();
     let cache = args::take_cache(&mut argv);
     let list_only = argv.iter().position(|a| a == "--cases").map(|i| argv.remove(i)).is_some();
+    let lag = argv.iter().position(|a| a == "--lag").map(|i| argv.remove(i)).is_some();
     let mut only = Vec::new();
     while let Some(i) = argv.iter().position(|a| a == "--only") {
         let Some(text) = argv.get(i + 1).cloned() else {
@@ -102,6 +105,11 @@ fn main() {
                 Err(e) => {
                     missed += 1;
                     println!("{label} failed: {e} | | | | | | | |")
+                }
+            }
+            if lag {
+                for (lo, hi, n, mean) in sweep::lag_by_speed(&c, sensor, seconds, file.as_deref()).unwrap_or_default() {
+                    println!("    lag along the motion at {lo:.0}-{hi:.0} px/s: {mean:+.3} px ({n} centres)");
                 }
             }
         }

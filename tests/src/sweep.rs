@@ -134,7 +134,7 @@ impl Case {
 /// `PixelModel::physical`'s noise. Around it, one thing changed at a time from a pixel of
 /// 300 Hz: out of focus (edge blur 2.5 px at the focus distance) on the good-light cone and
 /// spiral; the square motion (the board parallel to the sensor, its grid along the sensor's
-/// edges) in good and low light; thresholds of 0.15 and 0.5 with mismatch (the cone in good
+/// edges) in good and low light, and with an ideal pixel in good light; thresholds of 0.15 and 0.5 with mismatch (the cone in good
 /// light; 0.5 also on the spiral); no noise at all, and a dim room's noise (the cone in low
 /// light; the spiral in low light too).
 pub fn cases() -> Vec<Case> {
@@ -149,6 +149,7 @@ pub fn cases() -> Vec<Case> {
     }
     out.push(Case { blur_px: Some(2.5), ..Case::base(Cone, Good, 300.0) });
     out.push(Case { blur_px: Some(2.5), ..Case::base(Spiral, Good, 300.0) });
+    out.push(Case::base(Square, Good, f64::INFINITY));
     out.push(Case::base(Square, Good, 300.0));
     out.push(Case::base(Square, Low, 300.0));
     out.push(Case { threshold: Some((0.15, 0.02)), ..Case::base(Cone, Good, 300.0) });
@@ -235,4 +236,54 @@ pub fn run(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Res
         failed: o.failure.is_some(),
         focal_warning: o.advice.iter().any(|a| a.starts_with("the focal length is weakly fixed")),
     })
+}
+
+/// How far the detected centres of `case` lag their circles along the motion, by the
+/// circle's image speed: `(speed from, to (px/s), centres, mean lag (px, negative: behind))`
+/// for each 50 px/s bin with at least 20 centres, against the simulator's truth (the centre
+/// of each circle's outline at the window's reference time; the motion from the windows on
+/// either side). A lag the same at every speed is a distance (what `views::edge_shift`
+/// models); one growing in proportion to the speed is a delay, which a view's pose absorbs
+/// when all its circles share it. `cache`: see [`run`].
+pub fn lag_by_speed(
+    case: &Case,
+    sensor: &str,
+    seconds: f64,
+    cache: Option<&Path>,
+) -> Option<Vec<(f64, f64, usize, f64)>> {
+    let (cfg, _) = case.config(sensor)?;
+    let r = Recorded::simulate(cfg, seconds, false, cache);
+    const BIN: f64 = 50.0;
+    let mut bins = vec![(0usize, 0.0f64); 16];
+    for k in 1..r.windows.len().saturating_sub(1) {
+        let dt = (r.windows[k + 1].t_ref_us as f64 - r.windows[k - 1].t_ref_us as f64) * 1e-6;
+        if dt <= 0.0 {
+            continue;
+        }
+        for c in &r.windows[k].centers {
+            let p = [f64::from(c.u), f64::from(c.v)];
+            let Some(i) = r.nearest(k, p) else { continue };
+            let (t, a, b) = (&r.truth[k][i], &r.truth[k - 1][i], &r.truth[k + 1][i]);
+            let d = [p[0] - t.centre[0], p[1] - t.centre[1]];
+            // Beyond 2 px the nearest circle is not this centre's (or the fit is a stray).
+            if !t.in_view || d[0].hypot(d[1]) > 2.0 {
+                continue;
+            }
+            let v = [(b.centre[0] - a.centre[0]) / dt, (b.centre[1] - a.centre[1]) / dt];
+            let speed = v[0].hypot(v[1]);
+            if speed <= 0.0 {
+                continue;
+            }
+            let bin = &mut bins[((speed / BIN) as usize).min(15)];
+            bin.0 += 1;
+            bin.1 += (d[0] * v[0] + d[1] * v[1]) / speed;
+        }
+    }
+    Some(
+        bins.iter()
+            .enumerate()
+            .filter(|(_, b)| b.0 >= 20)
+            .map(|(i, b)| (BIN * i as f64, BIN * (i + 1) as f64, b.0, b.1 / b.0 as f64))
+            .collect(),
+    )
 }
