@@ -322,9 +322,11 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
                 }
                 _ => {
                     let [fx, fy] = init::focal_with_centre(&homographies, centre).ok_or_else(|| {
-                        CalibError::Degenerate(
-                            "no focal length fits the views (are they all parallel to the sensor?)".into(),
-                        )
+                        CalibError::Degenerate(format!(
+                            "no focal length fits the {} views: too few to tell the focal length \
+                             from the distance, or all nearly parallel to the sensor (tilt the target)",
+                            usable.len()
+                        ))
                     })?;
                     [fx, fy, centre[0], centre[1]]
                 }
