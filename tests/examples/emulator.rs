@@ -140,23 +140,45 @@ fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<(
     Some((centre, [cx / (3.0 * area), cy / (3.0 * area)]))
 }
 
-/// The centre a circle fit finds on the outline of board point `o` at `t` when only the
-/// edges moving across themselves give events: the outline's points weighted by arc length
-/// times |motion · normal| (`u`, a unit image direction), fitted by a weighted algebraic
-/// circle fit.
-fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: [f64; 2]) -> Option<[f64; 2]> {
+/// Points about a centre, each with its weight.
+type Weighted = Vec<([f64; 2], f64)>;
+
+/// The outline of board point `o` at `t` as a fit sees it: 256 points about their mean
+/// (returned too), each weighted by its arc length, times |motion · normal| when `u` (a
+/// unit image direction) is given: only the edges moving across themselves give events.
+fn weighted_outline(
+    truth: &Truth,
+    k: &Intrinsics,
+    o: &[f64; 3],
+    t: f64,
+    u: Option<[f64; 2]>,
+) -> Option<([f64; 2], Weighted)> {
     let n = 256;
     let (_, pts) = true_outline(truth, k, o, t, n)?;
     let c0 = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
-    // Weighted Kasa fit: x² + y² + D x + E y + F = 0, in coordinates about c0.
+    let weighted = (0..n)
+        .map(|j| {
+            let (p, q) = (pts[(j + n - 1) % n], pts[(j + 1) % n]);
+            let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
+            let ds = tx.hypot(ty) * 0.5;
+            let w = match u {
+                Some(u) => ds * ((u[0] * ty - u[1] * tx).abs() / (2.0 * ds).max(1e-12)),
+                None => ds,
+            };
+            ([pts[j][0] - c0[0], pts[j][1] - c0[1]], w)
+        })
+        .collect();
+    Some((c0, weighted))
+}
+
+/// The centre a weighted algebraic circle fit (Kåsa) finds on the outline of board point `o`
+/// at `t`, weighted for motion `u` (see [`weighted_outline`]).
+fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: [f64; 2]) -> Option<[f64; 2]> {
+    let (c0, pts) = weighted_outline(truth, k, o, t, Some(u))?;
+    // x² + y² + D x + E y + F = 0, in coordinates about c0.
     let mut m = nalgebra::Matrix3::<f64>::zeros();
     let mut b = nalgebra::Vector3::<f64>::zeros();
-    for j in 0..n {
-        let (p, q) = (pts[(j + n - 1) % n], pts[(j + 1) % n]);
-        let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
-        let ds = tx.hypot(ty) * 0.5;
-        let w = ds * ((u[0] * ty - u[1] * tx).abs() / (2.0 * ds).max(1e-12));
-        let (x, y) = (pts[j][0] - c0[0], pts[j][1] - c0[1]);
+    for ([x, y], w) in pts {
         let row = nalgebra::Vector3::new(x, y, 1.0);
         m += w * row * row.transpose();
         b += w * row * (-(x * x + y * y));
@@ -166,23 +188,13 @@ fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u:
 }
 
 /// The centre of the conic fitted to the outline of board point `o` at `t` by the core's
-/// algebraic fit (rows x² − y², xy, x, y, 1; target −y²), its points weighted by arc length
-/// times |motion · normal| when `u` is given, else by arc length alone.
+/// algebraic fit (rows x² − y², xy, x, y, 1; target −y²), weighted as [`weighted_outline`]
+/// weighs it.
 fn conic_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: Option<[f64; 2]>) -> Option<[f64; 2]> {
-    let n = 256;
-    let (_, pts) = true_outline(truth, k, o, t, n)?;
-    let c0 = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+    let (c0, pts) = weighted_outline(truth, k, o, t, u)?;
     let mut m = nalgebra::Matrix5::<f64>::zeros();
     let mut b = nalgebra::Vector5::<f64>::zeros();
-    for j in 0..n {
-        let (p, q) = (pts[(j + n - 1) % n], pts[(j + 1) % n]);
-        let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
-        let ds = tx.hypot(ty) * 0.5;
-        let w = match u {
-            Some(u) => ds * ((u[0] * ty - u[1] * tx).abs() / (2.0 * ds).max(1e-12)),
-            None => ds,
-        };
-        let (x, y) = (pts[j][0] - c0[0], pts[j][1] - c0[1]);
+    for ([x, y], w) in pts {
         let row = nalgebra::Vector5::new(x * x - y * y, x * y, x, y, 1.0);
         m += w * row * row.transpose();
         b += w * row * (-(y * y));

@@ -81,7 +81,9 @@ fn main() {
                     c.light.name()
                 ))
             });
-            match sweep::run(&c, sensor, seconds, file.as_deref()) {
+            // Recorded once for both the calibration and the lag.
+            let Some(rec) = sweep::record(&c, sensor, seconds, file.as_deref()) else { continue };
+            match sweep::run_on(&c, sensor, &rec) {
                 Ok(o) => {
                     let (e, s) = (o.errors, o.sigmas);
                     let ratio: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / s[i])).collect();
@@ -108,7 +110,7 @@ fn main() {
                 }
             }
             if lag {
-                for (lo, hi, n, mean) in sweep::lag_by_speed(&c, sensor, seconds, file.as_deref()).unwrap_or_default() {
+                for (lo, hi, n, mean) in sweep::lag_by_speed(&rec) {
                     println!("    lag along the motion at {lo:.0}-{hi:.0} px/s: {mean:+.3} px ({n} centres)");
                 }
             }

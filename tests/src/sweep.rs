@@ -221,9 +221,21 @@ impl Outcome {
 /// settled at every window) and calibrates from it with `evcal calibrate`'s defaults; `Err`
 /// with the reason when there is no calibration at all. `cache`: see [`Recorded::simulate`].
 pub fn run(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Result<Outcome, String> {
+    run_on(case, sensor, &record(case, sensor, seconds, cache).ok_or_else(|| format!("unknown sensor {sensor}"))?)
+}
+
+/// The core's windows of `seconds` of `case` on `sensor`, simulated continuously (a slow
+/// photoreceptor must not be settled at every window); `None` for an unknown sensor.
+/// `cache`: see [`Recorded::simulate`].
+pub fn record(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Option<Recorded> {
+    let (cfg, _) = case.config(sensor)?;
+    Some(Recorded::simulate(cfg, seconds, false, cache))
+}
+
+/// [`run`] on windows [`record`] gave.
+pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, String> {
     let (cfg, pattern) = case.config(sensor).ok_or_else(|| format!("unknown sensor {sensor}"))?;
     let cam = cfg.camera;
-    let rec = Recorded::simulate(cfg, seconds, false, cache);
     let setup = Setup::new(pattern, [u32::from(cam.width), u32::from(cam.height)]);
     let views = views_from_windows(&rec.windows, &setup, &|_| {});
     let o = calibrate_views(&views, &setup).map_err(|e| e.to_string())?;
@@ -244,15 +256,8 @@ pub fn run(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Res
 /// of each circle's outline at the window's reference time; the motion from the windows on
 /// either side). A lag the same at every speed is a distance (what `views::edge_shift`
 /// models); one growing in proportion to the speed is a delay, which a view's pose absorbs
-/// when all its circles share it. `cache`: see [`run`].
-pub fn lag_by_speed(
-    case: &Case,
-    sensor: &str,
-    seconds: f64,
-    cache: Option<&Path>,
-) -> Option<Vec<(f64, f64, usize, f64)>> {
-    let (cfg, _) = case.config(sensor)?;
-    let r = Recorded::simulate(cfg, seconds, false, cache);
+/// when all its circles share it. `r`: what [`record`] gave.
+pub fn lag_by_speed(r: &Recorded) -> Vec<(f64, f64, usize, f64)> {
     const BIN: f64 = 50.0;
     let mut bins = vec![(0usize, 0.0f64); 16];
     for k in 1..r.windows.len().saturating_sub(1) {
@@ -279,11 +284,9 @@ pub fn lag_by_speed(
             bin.1 += (d[0] * v[0] + d[1] * v[1]) / speed;
         }
     }
-    Some(
-        bins.iter()
-            .enumerate()
-            .filter(|(_, b)| b.0 >= 20)
-            .map(|(i, b)| (BIN * i as f64, BIN * (i + 1) as f64, b.0, b.1 / b.0 as f64))
-            .collect(),
-    )
+    bins.iter()
+        .enumerate()
+        .filter(|(_, b)| b.0 >= 20)
+        .map(|(i, b)| (BIN * i as f64, BIN * (i + 1) as f64, b.0, b.1 / b.0 as f64))
+        .collect()
 }

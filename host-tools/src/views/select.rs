@@ -113,7 +113,9 @@ pub fn select_views(views: &[View], opts: &SelectOptions) -> Selection {
     let mut near_duplicates = 0;
     for (i, v) in views.iter().enumerate() {
         // Recent views are the likely duplicates: look at them first.
-        let duplicate = kept.iter().rev().any(|&k| change(v, &views[k]).is_some_and(|d| d < opts.min_change_px));
+        // At 0 (the default) nothing is a duplicate: no view is compared.
+        let duplicate = opts.min_change_px > 0.0
+            && kept.iter().rev().any(|&k| change(v, &views[k]).is_some_and(|d| d < opts.min_change_px));
         if duplicate {
             near_duplicates += 1;
         } else {
