@@ -506,6 +506,7 @@ pub fn verdict(cal: &Calibration) -> Option<String> {
         if !(sd[i].is_finite() && sd[i] <= FAILED_RELATIVE * scale) {
             let name = crate::calib::PARAMETER_NAMES[i];
             loose.push(match unit {
+                _ if !sd[i].is_finite() => format!("{name} not fixed at all"),
                 "%" => format!("{name} ±{:.1} % (1σ)", 100.0 * sd[i] / scale),
                 _ => format!("{name} ±{:.1} px (1σ)", sd[i]),
             });
@@ -628,7 +629,7 @@ mod test {
         cal.std_dev[0] = 1.27 * truth.fx;
         cal.std_dev[3] = f64::NAN;
         let why = verdict(&cal).expect("no calibration");
-        assert!(why.contains("fx ±127.0 %") && why.contains("cy ±NaN px"), "{why}");
+        assert!(why.contains("fx ±127.0 %") && why.contains("cy not fixed at all"), "{why}");
     }
 
     /// Centres that trail their circles by a distance in proportion to their edges'

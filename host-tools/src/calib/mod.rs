@@ -543,9 +543,15 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     // Standard deviations: the residual variance times the inverse of the reduced normal
     // matrix (the intrinsics' block of (JᵀWJ)⁻¹).
     let dof = (2 * count).saturating_sub(sol.free.len() + 6 * kept.len()).max(1) as f64;
-    let sigma2 = sol.cost / dof;
+    let sigma2 = (sol.cost / dof).max(MIN_POINT_STD_PX * MIN_POINT_STD_PX);
+    // A free parameter whose variance cannot be computed (a singular normal matrix, or a
+    // diagonal that rounding made negative) is not fixed by the views at all: its σ is
+    // infinite, never the zero the arrays start with.
     let mut std_dev_points = [0.0; 9];
     let mut std_dev = [0.0; 9];
+    for &i in &sol.free {
+        (std_dev_points[i], std_dev[i]) = (f64::INFINITY, f64::INFINITY);
+    }
     let mut shift_std_px = None;
     let data: Vec<solve::ViewData> = kept
         .iter()
@@ -578,7 +584,8 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         let shift_scores = shift.as_ref().map(|t| &t.scores[..]);
         let grouped = grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &opts.view_groups, shift_scores);
         let sd = |c: usize| {
-            let points = (sigma2 * inv[(c, c)]).max(0.0).sqrt();
+            let var = inv[(c, c)];
+            let points = if var > 0.0 && var.is_finite() { (sigma2 * var).sqrt() } else { f64::INFINITY };
             let g = grouped.as_ref().map_or(0.0, |g| g[(c, c)].max(0.0).sqrt());
             (points, points.max(g))
         };
@@ -588,10 +595,10 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         if shift.is_some() {
             shift_std_px = Some(sd(n_free).1);
         }
-        if let Some(a) = free.aspect {
-            std_dev_points[1] = a * std_dev_points[0];
-            std_dev[1] = a * std_dev[0];
-        }
+    }
+    if let Some(a) = free.aspect {
+        std_dev_points[1] = a * std_dev_points[0];
+        std_dev[1] = a * std_dev[0];
     }
     let warnings = constraint_warnings(&k, &std_dev, image_size);
     Ok(Calibration {
@@ -706,6 +713,12 @@ fn median_mad(x: &[f64]) -> (f64, f64) {
     d.sort_by(f64::total_cmp);
     (med, d[d.len() / 2])
 }
+
+/// The least spread a point's residual is taken to have in the standard deviations: the
+/// rounding of evcal's centres to the wire's 1/1024 px (`evcal_core::wire::fixed`), as a
+/// uniform error (its σ is the step over √12). Views that fit better than that, as noise-free synthetic ones do, would
+/// otherwise give every parameter a σ of almost zero however loosely the views fix it.
+const MIN_POINT_STD_PX: f64 = 1.0 / (evcal_core::wire::fixed::UNITS_PER_PX as f64 * 3.464_101_615_137_754_5);
 
 /// Warnings for parameters the views leave poorly constrained: a parameter is named when
 /// moving it by one standard deviation moves the image of a sensor corner by more than
@@ -929,6 +942,59 @@ mod test {
         let cal = calibrate(&views, [346, 260], &Options::default()).unwrap();
         assert_eq!(cal.rejected.len(), 1);
         assert!(cal.rejected[0].reason.contains("points"));
+    }
+
+    /// Views of a target held parallel to the sensor at one distance, turned about the
+    /// optical axis and moved across it: the image is the same for a focal length `s` times
+    /// larger seen from `s` times farther (with the distortion rescaled), so no focal length
+    /// is fixed. Whatever the noise, the solve must refuse or give fx a σ that says so.
+    #[test]
+    fn views_parallel_to_the_sensor_fix_no_focal_length() {
+        let t = truth();
+        let board: Vec<[f64; 3]> = (0..11)
+            .flat_map(|i| (0..4).map(move |j| [i as f64 * 0.024, (2 * j + i % 2) as f64 * 0.024, 0.0]))
+            .collect();
+        // (turn about the axis per view (rad), step across (m), a slight tilt per view (rad),
+        // views, noise (px))
+        let cases = [
+            (0.5, [0.03, -0.02], 0.0, 4, 0.0),
+            (1.1, [0.0, 0.0], 0.0, 4, 0.0),
+            (0.7, [0.02, 0.0], 0.001, 4, 0.0),
+            (0.7, [0.02, 0.0], 0.0, 8, 0.0),
+            (0.3, [0.02, 0.01], 0.0, 12, 0.1),
+        ];
+        for (turn, step, tilt, count, noise) in cases {
+            let views: Vec<View> = (0..count)
+                .map(|k| {
+                    let kf = k as f64;
+                    let rot = Rotation3::from_scaled_axis(Vector3::new(tilt * kf, 0.0, turn * kf));
+                    let centre = rot * Vector3::new(0.12, 0.084, 0.0);
+                    let pose = Pose {
+                        rotation: rot,
+                        translation: Vector3::new(step[0] * kf - 0.03, step[1] * kf, 0.5) - centre,
+                    };
+                    let image = board
+                        .iter()
+                        .enumerate()
+                        .map(|(i, p)| {
+                            let m =
+                                t.project(&(pose.rotation * Vector3::from(*p) + pose.translation)).expect("in front");
+                            let e = |a: usize| noise * ((a % 5) as f64 - 2.0);
+                            [m[0] + e(i * 7 + k * 3), m[1] + e(i * 3 + k)]
+                        })
+                        .collect();
+                    View { object: board.clone(), image }
+                })
+                .collect();
+            if let Ok(cal) = calibrate(&views, [346, 260], &Options::default()) {
+                let (fx, sd) = (cal.intrinsics.fx, cal.std_dev[0]);
+                // Beyond 5 % of itself, the CLI's verdict calls the run no calibration.
+                assert!(
+                    sd.is_nan() || sd > 0.05 * fx.abs(),
+                    "turn {turn}, {count} views: fx {fx} ± {sd} claims a calibration"
+                );
+            }
+        }
     }
 
     #[test]

@@ -51,7 +51,9 @@ pub struct ResultJson {
     pub mean_view_px: f64,
     /// Median of the views' RMS errors, px.
     pub median_view_px: f64,
-    /// One standard deviation of each parameter (0 for a fixed one).
+    /// One standard deviation of each parameter (0 for a fixed one; `null` for one the
+    /// views do not fix at all, read back as infinite).
+    #[serde(deserialize_with = "unbounded_as_null")]
     pub std_dev: Intrinsics,
     /// Views set aside, and why.
     pub rejected: Vec<RejectedJson>,
@@ -78,6 +80,26 @@ pub struct ResultJson {
     /// `null` for a calibration. A program reading the file should check it.
     #[serde(default)]
     pub calibration_failed: Option<String>,
+}
+
+/// Reads `std_dev` back: JSON has no infinity, so `serde_json` writes an unbounded σ as
+/// `null`; read as infinite, it keeps its meaning (not a σ of zero, nor an error).
+fn unbounded_as_null<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Intrinsics, D::Error> {
+    #[derive(Deserialize)]
+    struct Maybe {
+        fx: Option<f64>,
+        fy: Option<f64>,
+        cx: Option<f64>,
+        cy: Option<f64>,
+        k1: Option<f64>,
+        k2: Option<f64>,
+        p1: Option<f64>,
+        p2: Option<f64>,
+        k3: Option<f64>,
+    }
+    let m = Maybe::deserialize(d)?;
+    let v = [m.fx, m.fy, m.cx, m.cy, m.k1, m.k2, m.p1, m.p2, m.k3].map(|x| x.unwrap_or(f64::INFINITY));
+    Ok(Intrinsics::from_array(v))
 }
 
 /// One used view in the JSON result.
@@ -283,6 +305,23 @@ mod test {
         assert_eq!(back.views_used, json.views_used);
         assert_eq!(back.rejected, json.rejected);
         assert_eq!(back.warnings, json.warnings);
+    }
+
+    #[test]
+    fn an_unbounded_sigma_is_written_null_and_read_back_infinite() {
+        let views = synthetic_views(&TRUTH, 8, 0.1, 3);
+        let mut cal = calibrate(&views, [346, 260], &Options::default()).unwrap();
+        cal.std_dev[0] = f64::INFINITY;
+        let origins: Vec<ViewOrigin> =
+            (0..views.len()).map(|i| ViewOrigin { window_seq: i as u64, t_s: i as f64 }).collect();
+        let json = result_json(&cal, &origins, RunCounts { windows: 8, detections: 8 }).unwrap();
+        let text = serde_json::to_string(&json).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert!(v["std_dev"]["fx"].is_null(), "{}", v["std_dev"]);
+        assert_eq!(v["std_dev"]["fy"].as_f64(), Some(cal.std_dev[1]));
+        let back: ResultJson = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.std_dev.fx, f64::INFINITY);
+        assert_eq!(back.std_dev.fy, cal.std_dev[1]);
     }
 
     #[test]
