@@ -13,7 +13,8 @@ pub const DEFAULT_STEP_US: u64 = 33_333;
 pub const DEFAULT_EPS: f32 = 0.015;
 
 /// Default DBSCAN minimum number of points in an eps-neighbourhood (the point included)
-/// for a point to be a core point.
+/// for a point to be a core point, on a clean window (the detector adds the window's
+/// background: [`crate::cluster::min_pts_above_background`]).
 pub const DEFAULT_MIN_PTS: u16 = 10;
 
 /// Default capacity of a window: the most events one window may hold.

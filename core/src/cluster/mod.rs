@@ -30,6 +30,7 @@
 // Index loops read best here: indices are compared, swapped and stored as labels.
 #![allow(clippy::needless_range_loop)]
 
+mod background;
 mod clusterer;
 mod labelling;
 mod metric;
@@ -43,6 +44,7 @@ mod tables;
 mod tests;
 mod union_find;
 
+pub use background::{background_per_neighbourhood, min_pts_above_background, BACKGROUND_CELLS, BACKGROUND_Z};
 pub use clusterer::Clusterer;
 pub use metric::Metric;
 pub use rows::MAX_REACH_ROWS;
@@ -66,7 +68,10 @@ const NONE: u16 = 0x7FFF;
 pub struct ClusterConfig {
     /// Neighbourhood radius in normalised coordinates (x / W, y / H).
     pub eps: f32,
-    /// Fewest points in a neighbourhood (the point included) that make a core point.
+    /// Fewest points in a neighbourhood (the point included) that make a core point. The
+    /// [`Detector`](crate::detect::Detector) takes it as the edges' own density and adds the
+    /// window's background to it ([`min_pts_above_background`]); [`Clusterer::cluster`] uses
+    /// it as it is.
     pub min_pts: u16,
     /// For ST-DBSCAN: the largest time difference between neighbours, as a fraction of the
     /// window's duration. `None` is plain spatial DBSCAN.

@@ -90,7 +90,11 @@ pub struct CoreArgs {
     /// DBSCAN radius, in coordinates normalised by the sensor size.
     #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS)]
     pub eps: f32,
-    /// DBSCAN minimum points in a neighbourhood (the point included).
+    /// DBSCAN minimum points in a neighbourhood (the point included), over the background:
+    /// each window adds the events its pixels' noise puts in a neighbourhood by chance (the
+    /// lower quartile of its counts over a 32x24 grid of the sensor, plus two standard
+    /// deviations), so that a dim room's noise does not join circles; 0 added on a clean
+    /// window.
     #[arg(long, default_value_t = evcal_core::config::DEFAULT_MIN_PTS)]
     pub min_pts: u16,
     /// Use ST-DBSCAN: neighbours must also be within this fraction of the window's duration.
