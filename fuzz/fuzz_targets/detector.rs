@@ -29,6 +29,7 @@ fuzz_target!(|data: &[u8]| {
             method: [FitMethod::Erwls, FitMethod::Ols, FitMethod::Centroid][usize::from(head[7] % 3)],
             max_iterations: head[7] / 3 % 12,
             min_events: 1 + u16::from(head[7] % 7),
+            filled_discs: head[6] & 2 == 2,
         },
     };
     let mut det: Box<Detector<2048, 32>> = Box::new(Detector::new(cfg));

@@ -102,6 +102,7 @@ pub const fn default_config(sensor: SensorSize) -> DetectConfig {
             method: FitMethod::Erwls,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             min_events: DEFAULT_MIN_CLUSTER_EVENTS,
+            filled_discs: false,
         },
     }
 }

@@ -227,7 +227,12 @@ fn put_config(s: &mut impl Sink, c: &DetectConfig) {
     });
     s.put(c.fit.max_iterations);
     s.varint(c.fit.min_events.into());
+    s.put(u8::from(c.fit.filled_discs) * FIT_FILLED_DISCS);
 }
+
+/// The fit's flags byte of a configuration: bit 0, [`FitConfig::filled_discs`]; the other
+/// bits are reserved and must be 0.
+const FIT_FILLED_DISCS: u8 = 1;
 
 fn read_config(r: &mut Reader<'_>) -> Result<DetectConfig> {
     let sensor = SensorSize::new(r.varint_u16()?, r.varint_u16()?);
@@ -245,7 +250,12 @@ fn read_config(r: &mut Reader<'_>) -> Result<DetectConfig> {
         2 => FitMethod::Erwls,
         _ => return Err(Error::Invalid),
     };
-    let fit = FitConfig { method, max_iterations: r.u8()?, min_events: r.varint_u16()? };
+    let (max_iterations, min_events) = (r.u8()?, r.varint_u16()?);
+    let flags = r.u8()?;
+    if flags & !FIT_FILLED_DISCS != 0 {
+        return Err(Error::Invalid);
+    }
+    let fit = FitConfig { method, max_iterations, min_events, filled_discs: flags & FIT_FILLED_DISCS != 0 };
     Ok(DetectConfig { sensor, window, cluster: ClusterConfig { eps, min_pts, eps_t }, fit })
 }
 
@@ -453,7 +463,7 @@ pub(super) mod test {
         check(DeviceMessage::parse(&p).unwrap());
     }
 
-    const DAVIS_CONFIG: [u8; 18] = [
+    const DAVIS_CONFIG: [u8; 19] = [
         0xDA, 0x02, // width 346
         0x84, 0x02, // height 260
         0xA0, 0x1F, // 4000 events per window
@@ -464,6 +474,7 @@ pub(super) mod test {
         0x02, // eRWLS
         0x06, // 6 iterations (main's DEFAULT_MAX_ITERATIONS since 9c3fd89)
         0x14, // min 20 events
+        0x00, // fit flags: rings only (protocol version 2)
     ];
 
     fn davis() -> DetectConfig {
@@ -510,14 +521,19 @@ pub(super) mod test {
     fn golden_config() {
         let mut cfg = davis();
         cfg.cluster.eps_t = Some(0.5);
+        cfg.fit.filled_discs = true;
         let c = Config { session: 1, config: cfg };
         let f = emit(|o| c.emit(o));
         let mut expected = vec![0x81, 0x01];
         expected.extend(&DAVIS_CONFIG[..14]);
-        expected.extend([0x01, 0x00, 0x00, 0x00, 0x3F, 0x02, 0x06, 0x14]);
+        expected.extend([0x01, 0x00, 0x00, 0x00, 0x3F, 0x02, 0x06, 0x14, 0x01]);
         let p = payload(&f);
         assert_eq!(p, expected);
         assert_eq!(HostMessage::parse(&p), Ok(HostMessage::Config(c)));
+        // A fit flag this version does not know is refused, not ignored.
+        let mut unknown = p.clone();
+        *unknown.last_mut().unwrap() = 0x03;
+        assert_eq!(HostMessage::parse(&unknown), Err(Error::Invalid));
     }
 
     #[test]

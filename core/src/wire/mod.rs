@@ -58,7 +58,9 @@
 //!
 //! † config: sensor width, height, events per window, step µs, eps `f32`, min_pts, eps_t
 //! (`u8` 0, or 1 and `f32`), fit method `u8` (0 centroid, 1 OLS, 2 eRWLS), max iterations
-//! `u8`, min cluster events.
+//! `u8`, min cluster events, fit flags `u8` (bit 0: filled discs, see
+//! [`FitConfig::filled_discs`](crate::fit::FitConfig::filled_discs); other bits 0, else the
+//! configuration is invalid). Version 2 added the flags byte; version 1 had none.
 //!
 //! Centres are quantised to 1/1024 px ([`fixed`]) and packed with a frame of reference per
 //! field: a window's radii that span 3.2–9.8 px cost 13 bits each, not 32. Measured
@@ -88,7 +90,7 @@ pub use frame::{Feed, FrameAccumulator};
 pub use message::{Ack, Config, DeviceMessage, End, Hello, HelloReply, HostMessage, Stats};
 
 /// The protocol version this crate speaks, carried in [`Hello`].
-pub const PROTOCOL_VERSION: u8 = 1;
+pub const PROTOCOL_VERSION: u8 = 2;
 
 /// Message type bytes, as the table of [messages](self#messages) lists them. Here rather than
 /// beside any one message: every message's emitter writes its own, and the parsers of both

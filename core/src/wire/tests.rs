@@ -92,20 +92,23 @@ fn detect_config() -> impl Strategy<Value = DetectConfig> {
     (
         (any::<u16>(), any::<u16>(), 0usize..=u32::MAX as usize, any::<u64>()),
         (finite(), any::<u16>(), proptest::option::of(finite())),
-        (0u8..3, any::<u8>(), any::<u16>()),
+        (0u8..3, any::<u8>(), any::<u16>(), any::<bool>()),
     )
-        .prop_map(|((w, h, events, step_us), (eps, min_pts, eps_t), (m, max_iterations, min_events))| {
-            DetectConfig {
-                sensor: SensorSize::new(w, h),
-                window: WindowConfig { events, step_us },
-                cluster: ClusterConfig { eps, min_pts, eps_t },
-                fit: FitConfig {
-                    method: [FitMethod::Centroid, FitMethod::Ols, FitMethod::Erwls][usize::from(m)],
-                    max_iterations,
-                    min_events,
-                },
-            }
-        })
+        .prop_map(
+            |((w, h, events, step_us), (eps, min_pts, eps_t), (m, max_iterations, min_events, filled_discs))| {
+                DetectConfig {
+                    sensor: SensorSize::new(w, h),
+                    window: WindowConfig { events, step_us },
+                    cluster: ClusterConfig { eps, min_pts, eps_t },
+                    fit: FitConfig {
+                        method: [FitMethod::Centroid, FitMethod::Ols, FitMethod::Erwls][usize::from(m)],
+                        max_iterations,
+                        min_events,
+                        filled_discs,
+                    },
+                }
+            },
+        )
 }
 
 fn centre() -> impl Strategy<Value = WireCentre> {
