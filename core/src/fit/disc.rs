@@ -63,24 +63,24 @@ const MIN_FILL: f32 = 0.25;
 /// uniform disc is its radius; a fit that runs far from it found some other curve.
 const MAX_RADIUS_CHANGE: f32 = 0.4;
 
-/// The disc's outline fitted to `parts` in frame `f`, or `None` when the events are no
-/// filled disc with a sharp outline.
-pub(super) fn disc(parts: &[&[WindowEvent]], f: &Frame) -> Option<Local> {
+/// The disc's outline fitted to the `n` events of `parts` in frame `f`, or `None` when the
+/// events are no filled disc with a sharp outline.
+pub(super) fn disc(parts: &[&[WindowEvent]], n: usize, f: &Frame) -> Option<Local> {
     let (w, h) = (f.half_w + 0.5, f.half_h + 0.5);
     if max(w, h) > MAX_ASPECT * if w < h { w } else { h } {
         return None;
     }
     let events = || parts.iter().flat_map(|p| p.iter());
     // Start: the centroid, and the radius of a uniform disc of the events' second moment.
-    let (mut n, mut sx, mut sy) = (0.0f32, 0.0f32, 0.0f32);
+    if n == 0 {
+        return None;
+    }
+    let n = n as f32;
+    let (mut sx, mut sy) = (0.0f32, 0.0f32);
     for e in events() {
         let (x, y, _) = f.local(e);
-        n += 1.0;
         sx += x;
         sy += y;
-    }
-    if n < 1.0 {
-        return None;
     }
     let (u0, v0) = (sx / n, sy / n);
     let mut s2 = 0.0f32;

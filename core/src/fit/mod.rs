@@ -182,8 +182,9 @@ pub(crate) fn fit_in(
         FitMethod::Ols | FitMethod::Erwls => {
             // A cluster the cylinder gives up on may be a dark circle filled with its slow
             // pixels' events: its outline is still a circle.
-            ring(parts, n, &frame, start, t_ref_us, cfg, scratch, give_up)
-                .or_else(|| (cfg.method == FitMethod::Erwls && cfg.filled_discs).then(|| disc(parts, &frame)).flatten())
+            ring(parts, n, &frame, start, t_ref_us, cfg, scratch, give_up).or_else(|| {
+                (cfg.method == FitMethod::Erwls && cfg.filled_discs).then(|| disc(parts, n, &frame)).flatten()
+            })
         }
     }?;
     frame.accept(result, n as u16, t_ref_us as f32 * 1e-3)
