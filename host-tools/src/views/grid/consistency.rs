@@ -2,11 +2,28 @@
 
 use super::{dist, Pt};
 
+/// Largest ratio of radii between a centre and the neighbour that gives its spacing:
+/// neighbouring circles of a board tilted by 60° differ by well under this.
+const LIKE_SIZE: f64 = 1.5;
+
 /// Indices of the centres whose radius and nearest-neighbour distance agree with the
 /// densest mode of both: the grid's scale.
 pub(super) fn consistent(pts: &[Pt]) -> Vec<usize> {
+    // Each centre's nearest neighbour that could be its neighbour on a board: of a like size
+    // and not overlapping it (the board's circles are apart by several radii). A blob beside
+    // or over a circle (a noise cluster, a fragment) is not the grid's spacing; counting it
+    // would set the circle aside, cut the lattice there and let clutter beyond its edge
+    // decide the labelling (the property test's roll 154° case).
+    let like = |a: usize, b: usize| {
+        (pts[a].r / pts[b].r).ln().abs() < LIKE_SIZE.ln() && dist(pts[a].p, pts[b].p) > pts[a].r + pts[b].r
+    };
     let nn: Vec<f64> = (0..pts.len())
-        .map(|a| (0..pts.len()).filter(|&b| b != a).map(|b| dist(pts[a].p, pts[b].p)).fold(f64::INFINITY, f64::min))
+        .map(|a| {
+            (0..pts.len())
+                .filter(|&b| b != a && like(a, b))
+                .map(|b| dist(pts[a].p, pts[b].p))
+                .fold(f64::INFINITY, f64::min)
+        })
         .collect();
     let feature = |k: usize| (pts[k].r.ln(), nn[k].max(1e-9).ln());
     // Within 25 % of each other in both: the same circle size and spacing seen at nearly

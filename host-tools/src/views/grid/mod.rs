@@ -7,7 +7,8 @@
 //!
 //! 1. **Consistency filter** (the E-Calib paper's modified hierarchical clustering, its
 //!    eq. 8–11): the grid's circles share a radius and a nearest-neighbour distance (the
-//!    diagonal spacing), the clutter's are scattered. The densest mode of (radius,
+//!    diagonal spacing; the neighbour of a like size that does not overlap, so that a blob
+//!    over or beside a circle does not hide its spacing), the clutter's are scattered. The densest mode of (radius,
 //!    nearest-neighbour distance) gives the grid's scale; centres far from it are set aside.
 //! 2. **Lattice growth**: the board is a square lattice turned by 45° (diagonal neighbours
 //!    `S√2` apart). From a seed whose four nearest neighbours form two opposite pairs, the
