@@ -496,6 +496,54 @@ fn focal_warning(cal: &Calibration, coverage: &Coverage, lag: Option<&[f64; 9]>)
     })
 }
 
+/// Why a calibration attempt gave no calibration (its error, or [`Outcome::failure`]);
+/// `None` when it gave one.
+///
+/// A recording whose ring fits give no calibration is detected again with filled discs
+/// (`evcal_core::fit::FitConfig::filled_discs`) by `evcal calibrate` and the physics sweep
+/// alike: the discs cost accuracy where rings hold (a dim room's scenes read worse with
+/// them, docs/accuracy.md) and are the only circles where the slow pixels of a dark circle
+/// fill it (a large sensor in dim light), so they are fitted only where rings failed.
+pub fn no_calibration(result: &Result<Outcome, PipelineError>) -> Option<String> {
+    match result {
+        Ok(o) => o.failure.clone(),
+        Err(e) => Some(e.to_string()),
+    }
+}
+
+/// Largest σ of the focal length (1σ, relative) of a calibration from filled discs that is
+/// taken where the rings gave none ([`disc_fallback_rejects`]).
+///
+/// A disc's centre lies up to a pixel from its circle's along the motion (its ON crescent
+/// outweighs its fill's edge), the same for the discs of one window only to about 0.2 px;
+/// the edge shift takes out one distance, and what differs between centres the σ does not
+/// hold. Many views from varied poses average it down; a handful do not: on the simulated
+/// DVXplorer's dim spiral at a 100 Hz photoreceptor the discs gave 8 views and fx +16 %
+/// with σ 4.9 %, inside [`FAILED_RELATIVE`] and 3.4σ off, while its dim cone and spiral at
+/// 300 Hz read +0.18 % (σ 0.18 %) and −0.57 % (σ 0.33 %).
+pub const DISC_FALLBACK_FOCAL_RELATIVE: f64 = 0.01;
+
+/// Why a calibration from filled discs, tried where the rings gave none, is not taken: it is
+/// no calibration ([`no_calibration`]), or its focal length is looser than
+/// [`DISC_FALLBACK_FOCAL_RELATIVE`]; `None` when it is taken.
+pub fn disc_fallback_rejects(result: &Result<Outcome, PipelineError>) -> Option<String> {
+    if let Some(why) = no_calibration(result) {
+        return Some(why);
+    }
+    let o = result.as_ref().ok()?;
+    let (k, sd) = (&o.calibration.intrinsics, &o.calibration.std_dev);
+    let rel = (sd[0] / k.fx.abs()).max(sd[1] / k.fy.abs());
+    // A NaN σ is no fixed focal length either.
+    (rel.is_nan() || rel > DISC_FALLBACK_FOCAL_RELATIVE).then(|| {
+        format!(
+            "the focal length ±{:.1} % (1σ) from {} views; a disc's centre may lie a pixel off its circle's, so discs are taken only where their views fix the focal length within {:.0} %",
+            100.0 * rel,
+            o.calibration.views.len(),
+            100.0 * DISC_FALLBACK_FOCAL_RELATIVE
+        )
+    })
+}
+
 /// Why `cal` is no calibration, if it is not: a parameter the views leave so loose that its
 /// printed value means nothing (beyond [`FAILED_RELATIVE`]).
 pub fn verdict(cal: &Calibration) -> Option<String> {

@@ -24,7 +24,7 @@ use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
     input::detections::{self, read_jsonl, WindowRecord},
     input::recording::{ReadError, Recording},
-    pipeline::{calibrate_views, views_from_windows, Outcome, Setup},
+    pipeline::{calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Outcome, Setup},
 };
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
@@ -240,8 +240,18 @@ fn trail_filter(
     })
 }
 
-fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize, x: Experiment) -> Vec<WindowRecord> {
-    let file = if x.any() { None } else { cache.map(|c| c.join(format!("{name}.jsonl"))) };
+/// The core's windows of a recording; with filled discs where no ring fits when
+/// `filled_discs` (as `evcal calibrate` detects again when the rings give no calibration).
+fn windows_of(
+    dir: &Path,
+    name: &str,
+    cache: Option<&Path>,
+    sensor: SensorSize,
+    x: Experiment,
+    filled_discs: bool,
+) -> Vec<WindowRecord> {
+    let suffix = if filled_discs { "-filled-discs" } else { "" };
+    let file = if x.any() { None } else { cache.map(|c| c.join(format!("{name}{suffix}.jsonl"))) };
     if let Some(w) = file.as_ref().and_then(|f| std::fs::File::open(f).ok()) {
         if let Ok(w) = read_jsonl(std::io::BufReader::new(w)) {
             return w;
@@ -254,6 +264,7 @@ fn windows_of(dir: &Path, name: &str, cache: Option<&Path>, sensor: SensorSize, 
     });
     let mut windows = Vec::new();
     let mut cfg = detections::host_config(sensor);
+    cfg.fit.filled_discs = filled_discs;
     if let Some(n) = x.events_per_window {
         cfg.window.events = n;
     }
@@ -333,7 +344,7 @@ fn main() {
             });
         let k = truth.intrinsics();
         let sensor = SensorSize { width: truth.sensor.width, height: truth.sensor.height };
-        let windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment);
+        let mut windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment, false);
         let pattern =
             evcal_host::views::grid::Pattern::new(truth.pattern.rows, truth.pattern.cols, truth.pattern.spacing_m)
                 .expect("a valid pattern");
@@ -342,11 +353,23 @@ fn main() {
         if no_smoothing {
             setup.smooth = None;
         }
-        let views = views_from_windows(&windows, &setup, &|_| {});
-        let out = match calibrate_views(&views, &setup) {
+        let mut views = views_from_windows(&windows, &setup, &|_| {});
+        let mut result = calibrate_views(&views, &setup);
+        // As `evcal calibrate`: filled discs where the rings give no calibration.
+        let mut name = truth.name.clone();
+        if no_calibration(&result).is_some() {
+            let discs = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment, true);
+            let disc_views = views_from_windows(&discs, &setup, &|_| {});
+            let disc_result = calibrate_views(&disc_views, &setup);
+            if disc_fallback_rejects(&disc_result).is_none() {
+                (windows, views, result) = (discs, disc_views, disc_result);
+                name += " (filled discs)";
+            }
+        }
+        let out = match result {
             Ok(o) => o,
             Err(e) => {
-                println!("| {} | failed: {e} | | | | | | |", truth.name);
+                println!("| {name} | failed: {e} | | | | | | |");
                 continue;
             }
         };
@@ -356,7 +379,7 @@ fn main() {
         let sig: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / sd[i])).collect();
         println!(
             "| {} | {:+.3} % (σ {:.3}) | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {} |",
-            truth.name,
+            name,
             e[0],
             sd[0],
             e[1],

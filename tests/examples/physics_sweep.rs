@@ -88,11 +88,12 @@ fn main() {
                     let (e, s) = (o.errors, o.sigmas);
                     let ratio: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / s[i])).collect();
                     let failed = if o.failed { " (no calibration)" } else { "" };
+                    let discs = if o.filled_discs { " (filled discs)" } else { "" };
                     let misses = o.misses(&c.targets());
                     missed += usize::from(!misses.is_empty());
                     let verdict = if misses.is_empty() { "met".to_string() } else { misses.join("; ") };
                     println!(
-                        "{label} {:+.3} % (σ {:.3}){failed} | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {} | {verdict} |",
+                        "{label} {:+.3} % (σ {:.3}){failed} | {:+.3} % | {:+.2} px (σ {:.2}) | {:+.2} px | {} | {:.3} px | {}{discs} | {verdict} |",
                         e[0],
                         s[0],
                         e[1],

@@ -26,6 +26,12 @@ pub struct TrueCentre {
 pub struct Recorded {
     /// The windows, in time order.
     pub windows: Vec<WindowRecord>,
+    /// The same windows with filled discs fitted where no ring fits
+    /// (`FitConfig::filled_discs`): what `evcal calibrate` detects again when the rings give
+    /// no calibration ([`evcal_host::pipeline::no_calibration`]). Empty in a cache written
+    /// before they were kept.
+    #[serde(default)]
+    pub disc_windows: Vec<WindowRecord>,
     /// Per window, the grid's circles by index.
     pub truth: Vec<Vec<TrueCentre>>,
 }
@@ -44,9 +50,15 @@ impl Recorded {
         let det = detections::host_config(SensorSize { width: cam.width, height: cam.height });
         let (events, sim) =
             if windowed { simulate_windows(cfg, seconds, det.window, |_| {}) } else { simulate(cfg, seconds) };
-        let mut windows = Vec::new();
-        detections::run(events.iter().map(|e| Ok(*e)), det, |d| windows.push(WindowRecord::from_detection(d)))
-            .expect("simulated events are valid");
+        let detect = |filled_discs: bool| {
+            let mut det = det;
+            det.fit.filled_discs = filled_discs;
+            let mut windows = Vec::new();
+            detections::run(events.iter().map(|e| Ok(*e)), det, |d| windows.push(WindowRecord::from_detection(d)))
+                .expect("simulated events are valid");
+            windows
+        };
+        let (windows, disc_windows) = (detect(false), detect(true));
         let truth = windows
             .iter()
             .map(|w| {
@@ -57,7 +69,7 @@ impl Recorded {
                     .collect()
             })
             .collect();
-        let r = Self { windows, truth };
+        let r = Self { windows, disc_windows, truth };
         if let Some(f) = cache {
             if let Some(dir) = f.parent() {
                 let _ = std::fs::create_dir_all(dir);

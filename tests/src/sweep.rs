@@ -4,7 +4,9 @@
 
 use crate::recorded::Recorded;
 use evcal_host::{
-    pipeline::{calibrate_views, views_from_windows, Setup, FOCAL_WARN_RELATIVE},
+    pipeline::{
+        calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Setup, FOCAL_WARN_RELATIVE,
+    },
     sim::{Light, PixelModel, SimConfig, Trajectory},
     views::grid::Pattern,
 };
@@ -188,6 +190,9 @@ pub struct Outcome {
     pub failed: bool,
     /// The run warned that the focal length is weakly fixed.
     pub focal_warning: bool,
+    /// The rings alone gave no calibration and this is the filled discs' (as `evcal
+    /// calibrate` falls back to them).
+    pub filled_discs: bool,
 }
 
 impl Outcome {
@@ -238,7 +243,16 @@ pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, Stri
     let cam = cfg.camera;
     let setup = Setup::new(pattern, [u32::from(cam.width), u32::from(cam.height)]);
     let views = views_from_windows(&rec.windows, &setup, &|_| {});
-    let o = calibrate_views(&views, &setup).map_err(|e| e.to_string())?;
+    let mut result = calibrate_views(&views, &setup);
+    let mut filled_discs = false;
+    // As `evcal calibrate`: filled discs where the rings give no calibration, if they give one.
+    if no_calibration(&result).is_some() && !rec.disc_windows.is_empty() {
+        let discs = calibrate_views(&views_from_windows(&rec.disc_windows, &setup, &|_| {}), &setup);
+        if disc_fallback_rejects(&discs).is_none() {
+            (result, filled_discs) = (discs, true);
+        }
+    }
+    let o = result.map_err(|e| e.to_string())?;
     let (k, sd) = (o.calibration.intrinsics, o.calibration.std_dev);
     Ok(Outcome {
         errors: [100.0 * (k.fx / cam.fx - 1.0), 100.0 * (k.fy / cam.fy - 1.0), k.cx - cam.cx, k.cy - cam.cy],
@@ -247,6 +261,7 @@ pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, Stri
         views: o.calibration.views.len(),
         failed: o.failure.is_some(),
         focal_warning: o.advice.iter().any(|a| a.starts_with("the focal length is weakly fixed")),
+        filled_discs,
     })
 }
 

@@ -11,7 +11,10 @@ use evcal_host::{
     export::{write_all, Export},
     input::detections::{self, WindowRecord},
     input::recording::parse_sensor,
-    pipeline::{calibrate_views, views_from_windows, Outcome, PipelineError, Setup, Views},
+    pipeline::{
+        calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Outcome, PipelineError, Setup,
+        Views,
+    },
     views::grid::Pattern,
 };
 use std::path::{Path, PathBuf};
@@ -37,6 +40,16 @@ pub struct CalibrateArgs {
     /// Also write the JSON result here (the same as calibration.json in --out).
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Never fit filled discs, not even when the rings alone give no calibration.
+    ///
+    /// By default a recording whose ring fits give no calibration (no grid, too few views,
+    /// a camera the views do not fix) is detected again with filled discs where no ring
+    /// fits (see --filled-discs), and the discs' calibration is taken if it is one and its
+    /// views fix the focal length within 1 % (a disc's centre may lie a pixel off its
+    /// circle's, which a handful of views does not average out); the run says so.
+    /// Recordings that calibrate from rings are never fitted with discs.
+    #[arg(long, conflicts_with = "filled_discs")]
+    pub no_filled_discs: bool,
     /// No progress bars or notes on standard error.
     #[arg(long, short)]
     pub quiet: bool,
@@ -200,7 +213,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
     check_spacing(a.target.spacing)?;
     check_outputs(&a.out, a.json.as_deref())?;
-    let (windows, size) = if is_detections(&a.input)? {
+    let from_events = !is_detections(&a.input)?;
+    let (windows, size) = if !from_events {
         let Some(s) = a.core.sensor.as_deref() else {
             bail!(
                 "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
@@ -216,7 +230,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             .with_context(|| a.input.display().to_string())?;
         (w, sensor)
     } else {
-        detect(&a)?
+        detect(&a, a.core.filled_discs)?
     };
     if windows.is_empty() {
         bail!("{}: no detection windows (an empty file)", a.input.display());
@@ -241,7 +255,13 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         );
     }
     let views = find_views(&windows, &setup, a.quiet);
-    let outcome = solve(&views, &setup).map_err(|e| {
+    let result = calibrate_views(&views, &setup);
+    let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
+        with_discs_if_rings_failed(&a, &setup, views, result)?
+    } else {
+        (views, result)
+    };
+    let outcome = result.map_err(anyhow::Error::from).map_err(|e| {
         // The finder's own message names the pattern; a wrong sensor size (centres
         // normalised, clustered and kept by it) fails the same way.
         let no_grid = e.downcast_ref::<PipelineError>().is_some_and(|p| matches!(p, PipelineError::NoGrid(s) if s.windows > 0));
@@ -281,11 +301,71 @@ fn indent(s: &str) -> String {
     s.lines().map(|l| format!("    {l}")).collect::<Vec<_>>().join("\n")
 }
 
-/// Runs the detection core over the recording.
-fn detect(a: &CalibrateArgs) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
+/// The views and the calibration from filled discs where no ring fits, when the rings alone
+/// gave no calibration (`result`) and the discs give one that
+/// [`disc_fallback_rejects`] takes; `views` and `result` otherwise. The recording is
+/// detected again, so only a regular file can be.
+fn with_discs_if_rings_failed(
+    a: &CalibrateArgs,
+    setup: &Setup,
+    views: Views,
+    result: Result<Outcome, PipelineError>,
+) -> Result<(Views, Result<Outcome, PipelineError>)> {
+    let Some(why) = no_calibration(&result) else { return Ok((views, result)) };
+    let why = first_clause(&why).to_string();
+    // Standard input or a pipe was read once and is gone.
+    if !std::fs::metadata(&a.input).is_ok_and(|m| m.is_file()) {
+        eprintln!(
+            "evcal: no calibration from ring fits alone ({why}); a recording read from a stream cannot be detected again with filled discs: run again on it with --filled-discs"
+        );
+        return Ok((views, result));
+    }
+    // Where a dark circle's slow pixels fill it, only its outline is a circle.
+    eprintln!(
+        "evcal: no calibration from ring fits alone ({why}); detecting again with filled discs where no ring fits (--no-filled-discs not to)"
+    );
+    let (discs, _) = detect(a, true)?;
+    let disc_views = find_views(&discs, setup, a.quiet);
+    let disc_result = calibrate_views(&disc_views, setup);
+    if let Some(no) = disc_fallback_rejects(&disc_result) {
+        eprintln!("evcal: filled discs gave no calibration either ({})", first_clause(&no));
+        return Ok((views, result));
+    }
+    if !a.quiet {
+        eprintln!("evcal: filled discs: {}", disc_views.stats.summary());
+    }
+    // Among the calibration's warnings, so that calibration.json says it too.
+    let disc_result = disc_result.map(|mut o| {
+        o.calibration.warnings.push(format!(
+            "circles fitted as filled discs where no ring fitted: the rings alone gave no calibration ({why}); a disc's centre is less sure than a ring's, so more light (or a faster photoreceptor bias) gives a better calibration"
+        ));
+        o
+    });
+    Ok((disc_views, disc_result))
+}
+
+/// The first clause of a reason (up to its first colon or semicolon outside brackets), for
+/// a one-line note.
+fn first_clause(why: &str) -> &str {
+    let mut depth = 0i32;
+    for (i, c) in why.char_indices() {
+        match c {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            ':' | ';' if depth <= 0 => return why[..i].trim(),
+            _ => {}
+        }
+    }
+    why.trim()
+}
+
+/// Runs the detection core over the recording, fitting filled discs where no ring fits when
+/// `filled_discs`.
+fn detect(a: &CalibrateArgs, filled_discs: bool) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
     let rec = a.read.open(&a.input, a.quiet, a.core.sensor.is_none())?;
     let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
-    let cfg = a.core.config(sensor)?;
+    let mut cfg = a.core.config(sensor)?;
+    cfg.fit.filled_discs = filled_discs;
     if !a.quiet {
         eprintln!("evcal: {}", a.core.window_line(&cfg));
     }

@@ -103,16 +103,18 @@ pub struct CoreArgs {
     /// Circle fit: erwls (the method), ols or centroid (for comparison).
     #[arg(long, value_enum, default_value_t = Method::Erwls)]
     pub method: Method,
-    /// Also fit filled discs where no ring fits (off by default; the firmware's default too).
+    /// Also fit filled discs where no ring fits, in every window.
     ///
     /// In dim light a dark circle's slow pixels go on firing after its edge passed and fill
     /// it with events, most on a large sensor whose circles span more pixels: a DVXplorer at
     /// a slow photoreceptor found its grid in no window. With this flag a cluster no ring
     /// fits is also tried as a filled disc, and the disc's outline gives its centre. Measured
     /// on simulations (docs/accuracy.md, "Filled discs"): the DVXplorer's dim cone then
-    /// calibrates (fx +0.18 %, cx +1.4 px), but a dim room's noise makes discs of its own
-    /// and those scenes read worse (DAVIS346 dim-room spiral -0.29 -> -0.79 %), hence off by
-    /// default. `evcal replay` asks the device for it too (slower windows on the device).
+    /// calibrates (fx +0.18 %, cx +1.4 px), but scenes whose rings hold read worse with
+    /// discs among them (DAVIS346 dim-room spiral -0.29 -> -0.79 %). So `evcal detect` and
+    /// `replay` fit none unless asked (the firmware's default too; `replay` asks the device,
+    /// whose windows then take longer), and `evcal calibrate` fits them only when the rings
+    /// alone give no calibration, detecting the recording again (--no-filled-discs: never).
     #[arg(long)]
     pub filled_discs: bool,
 }
