@@ -259,6 +259,15 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
         with_discs_if_rings_failed(&a, &setup, views, result)?
     } else {
+        if !from_events && !a.quiet {
+            if let Some(why) = no_calibration(&result) {
+                // Detections cannot be fitted again here; the events they came from can.
+                eprintln!(
+                    "evcal: no calibration from these detections ({}); if they were made in dim light without --filled-discs, detecting the recording again with it (evcal detect or replay --filled-discs) may give one",
+                    first_clause(&why)
+                );
+            }
+        }
         (views, result)
     };
     let outcome = result.map_err(anyhow::Error::from).map_err(|e| {
