@@ -324,20 +324,26 @@ fn with_discs_if_rings_failed(
     let why = first_clause(&why).to_string();
     // Standard input or a pipe was read once and is gone.
     if !std::fs::metadata(&a.input).is_ok_and(|m| m.is_file()) {
-        eprintln!(
-            "evcal: no calibration from ring fits alone ({why}); a recording read from a stream cannot be detected again with filled discs: run again on it with --filled-discs"
-        );
+        if !a.quiet {
+            eprintln!(
+                "evcal: no calibration from ring fits alone ({why}); a recording read from a stream cannot be detected again with filled discs: run again on it with --filled-discs"
+            );
+        }
         return Ok((views, result));
     }
     // Where a dark circle's slow pixels fill it, only its outline is a circle.
-    eprintln!(
-        "evcal: no calibration from ring fits alone ({why}); detecting again with filled discs where no ring fits (--no-filled-discs not to)"
-    );
+    if !a.quiet {
+        eprintln!(
+            "evcal: no calibration from ring fits alone ({why}); detecting again with filled discs where no ring fits (--no-filled-discs not to)"
+        );
+    }
     let (discs, _) = detect(a, true)?;
     let disc_views = find_views(&discs, setup, a.quiet);
     let disc_result = calibrate_views(&disc_views, setup);
     if let Some(no) = disc_fallback_rejects(&disc_result) {
-        eprintln!("evcal: filled discs gave no calibration either ({})", first_clause(&no));
+        if !a.quiet {
+            eprintln!("evcal: filled discs gave no calibration either ({})", first_clause(&no));
+        }
         return Ok((views, result));
     }
     if !a.quiet {
