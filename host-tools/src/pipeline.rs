@@ -532,8 +532,9 @@ pub fn disc_fallback_rejects(result: &Result<Outcome, PipelineError>) -> Option<
     }
     let o = result.as_ref().ok()?;
     let (k, sd) = (&o.calibration.intrinsics, &o.calibration.std_dev);
-    let rel = (sd[0] / k.fx.abs()).max(sd[1] / k.fy.abs());
-    // A NaN σ is no fixed focal length either.
+    let (rx, ry) = (sd[0] / k.fx.abs(), sd[1] / k.fy.abs());
+    // A NaN σ is no fixed focal length either (and `f64::max` would pass it over).
+    let rel = if rx.is_nan() || ry.is_nan() { f64::NAN } else { rx.max(ry) };
     (rel.is_nan() || rel > DISC_FALLBACK_FOCAL_RELATIVE).then(|| {
         format!(
             "the focal length ±{:.1} % (1σ) from {} views; a disc's centre may lie a pixel off its circle's, so discs are taken only where their views fix the focal length within {:.0} %",
@@ -642,6 +643,49 @@ mod test {
         assert_eq!(v.stats.points_at_edge, 4);
         assert_eq!(v.views[0].object.len(), 40);
         assert!(v.views[0].image.iter().all(|p| p[0] + 4.0 < 185.5));
+    }
+
+    /// Filled discs, tried where the rings gave no calibration, are taken only when theirs is
+    /// a calibration whose views fix the focal length within 1 %.
+    #[test]
+    fn filled_discs_are_taken_only_where_they_fix_the_focal_length() {
+        let pattern = Pattern::new(4, 11, 0.024).unwrap();
+        let setup = Setup::new(pattern, [346, 260]);
+        let none = calibrate_views(&Views::default(), &setup);
+        assert!(no_calibration(&none).is_some() && disc_fallback_rejects(&none).is_some());
+        let truth = calib::Intrinsics {
+            fx: 352.4,
+            fy: 351.1,
+            cx: 171.3,
+            cy: 128.6,
+            k1: -0.31,
+            k2: 0.12,
+            p1: 0.0,
+            p2: 0.0,
+            k3: 0.0,
+        };
+        let n = 12;
+        let views = Views {
+            views: calib::synthetic_views(&truth, n, 0.02, 3),
+            origins: (0..n).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect(),
+            partial: vec![false; n],
+            ..Views::default()
+        };
+        let mut o = calibrate_views(&views, &setup).expect("a solve");
+        o.failure = None;
+        let k = o.calibration.intrinsics;
+        o.calibration.std_dev[0] = 0.004 * k.fx;
+        o.calibration.std_dev[1] = 0.004 * k.fy;
+        assert!(no_calibration(&Ok(o.clone())).is_none());
+        assert_eq!(disc_fallback_rejects(&Ok(o.clone())), None);
+        o.calibration.std_dev[1] = 0.02 * k.fy;
+        let why = disc_fallback_rejects(&Ok(o.clone())).expect("refused");
+        assert!(why.contains("±2.0 %") && why.contains("12 views"), "{why}");
+        o.calibration.std_dev[1] = f64::NAN;
+        assert!(disc_fallback_rejects(&Ok(o.clone())).is_some());
+        o.failure = Some("loose".into());
+        assert_eq!(no_calibration(&Ok(o.clone())).as_deref(), Some("loose"));
+        assert_eq!(disc_fallback_rejects(&Ok(o)).as_deref(), Some("loose"));
     }
 
     /// A calibration whose focal length the views leave loose is warned about, and one they

@@ -569,3 +569,21 @@ pub fn list_written(w: &Written) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::first_clause;
+
+    #[test]
+    fn a_reason_is_cut_at_its_first_clause_outside_brackets() {
+        assert_eq!(
+            first_clause("grid found in 0 of 240 windows (not found: 240 too few centres): check --pattern"),
+            "grid found in 0 of 240 windows (not found: 240 too few centres)"
+        );
+        assert_eq!(
+            first_clause("1 usable view(s) of the target; a calibration needs at least 3"),
+            "1 usable view(s) of the target"
+        );
+        assert_eq!(first_clause(" no separator "), "no separator");
+    }
+}
