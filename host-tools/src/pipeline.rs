@@ -645,6 +645,11 @@ mod test {
         assert!(v.views[0].image.iter().all(|p| p[0] + 4.0 < 185.5));
     }
 
+    /// A DAVIS346-like lens for synthetic views.
+    fn lens() -> calib::Intrinsics {
+        calib::Intrinsics { fx: 352.4, fy: 351.1, cx: 171.3, cy: 128.6, k1: -0.31, k2: 0.12, p1: 0.0, p2: 0.0, k3: 0.0 }
+    }
+
     /// Filled discs, tried where the rings gave no calibration, are taken only when theirs is
     /// a calibration whose views fix the focal length within 1 %.
     #[test]
@@ -653,17 +658,7 @@ mod test {
         let setup = Setup::new(pattern, [346, 260]);
         let none = calibrate_views(&Views::default(), &setup);
         assert!(no_calibration(&none).is_some() && disc_fallback_rejects(&none).is_some());
-        let truth = calib::Intrinsics {
-            fx: 352.4,
-            fy: 351.1,
-            cx: 171.3,
-            cy: 128.6,
-            k1: -0.31,
-            k2: 0.12,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        };
+        let truth = lens();
         let n = 12;
         let views = Views {
             views: calib::synthetic_views(&truth, n, 0.02, 3),
@@ -692,17 +687,7 @@ mod test {
     /// leave meaningless is no calibration, with the parameter named.
     #[test]
     fn loose_parameters_are_warned_about_or_fail_the_calibration() {
-        let truth = calib::Intrinsics {
-            fx: 352.4,
-            fy: 351.1,
-            cx: 171.3,
-            cy: 128.6,
-            k1: -0.31,
-            k2: 0.12,
-            p1: 0.0,
-            p2: 0.0,
-            k3: 0.0,
-        };
+        let truth = lens();
         let views = calib::synthetic_views(&truth, 12, 0.02, 3);
         let mut cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
         let coverage = Coverage::of(&views.iter().collect::<Vec<_>>(), [346, 260]);
