@@ -12,7 +12,10 @@
 //! its successor. Empty frames (back-to-back delimiters) are skipped.
 //!
 //! The encoder here writes the shortest standard COBS form (no trailing 0x01 block after a
-//! full 254-byte block); the decoder accepts both forms.
+//! full 254-byte block), and the decoder accepts only that form. The longer form adds
+//! nothing but a byte 0x01 at the end, and 0x01 is a closing delimiter with its lowest bit
+//! flipped: a decoder that took both forms would take a frame whose delimiter was damaged
+//! as whole whenever its last block is a full one (a random property test found it).
 //!
 //! ## Why CRC-32C
 //!
@@ -129,6 +132,7 @@ pub(crate) fn emit_frame(out: &mut [u8], body: impl FnOnce(&mut FrameWriter<'_>)
 pub(crate) fn decode_in_place(buf: &mut [u8]) -> Result<usize> {
     let (mut r, mut w) = (0usize, 0usize);
     let len = buf.len();
+    let mut after_full_block = false;
     while r < len {
         let code = usize::from(buf.get(r).copied().unwrap_or(0));
         if code == 0 {
@@ -139,6 +143,11 @@ pub(crate) fn decode_in_place(buf: &mut [u8]) -> Result<usize> {
         if r + n > len {
             return Err(Error::Cobs);
         }
+        // An empty last block after a full one encodes nothing: not the shortest form.
+        if code == 1 && r == len && after_full_block {
+            return Err(Error::Cobs);
+        }
+        after_full_block = code == 0xFF;
         // w < r always: the copy moves data towards the front.
         buf.copy_within(r..r + n, w);
         w += n;
@@ -367,6 +376,47 @@ mod test {
                 }
             }
         }
+    }
+
+    #[test]
+    fn only_the_shortest_form_is_accepted() {
+        // 254 non-zero bytes and the CRC: a full block, then the CRC's block. Payloads of
+        // every length from 240 to 260 put the frame's last full block at its end for some.
+        let mut ended_full = 0;
+        for len in 240..=260usize {
+            let payload: Vec<u8> = (0..len).map(|i| (i % 250) as u8 + 1).collect();
+            let f = frame(&payload);
+            let body = &f[1..f.len() - 1];
+            // The longer form: the same frame with an empty block after its last one, as a
+            // closing delimiter with its lowest bit flipped gives.
+            let mut longer = body.to_vec();
+            longer.push(0x01);
+            let full_at_end = {
+                // Walk the blocks to the last one.
+                let mut r = 0;
+                let mut last = 0;
+                while r < body.len() {
+                    last = body[r];
+                    r += usize::from(body[r]);
+                }
+                last == 0xFF
+            };
+            let got = decode_in_place(&mut longer);
+            if full_at_end {
+                ended_full += 1;
+                assert_eq!(got, Err(Error::Cobs), "len {len}: the longer form is refused");
+            } else {
+                assert!(got.is_err(), "len {len}: an extra zero byte fails the CRC");
+            }
+            let mut same = body.to_vec();
+            let n = decode_in_place(&mut same).unwrap();
+            assert_eq!(&same[..n], &payload[..], "len {len}");
+        }
+        assert!(ended_full > 0, "some frame ended with a full block");
+        // A payload ending in zero needs its empty last block, and keeps it.
+        let f = frame(&[7, 0]);
+        let mut body = f[1..f.len() - 1].to_vec();
+        assert_eq!(decode_in_place(&mut body).map(|n| body[..n].to_vec()), Ok(vec![7, 0]));
     }
 
     #[test]
