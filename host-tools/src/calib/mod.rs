@@ -190,6 +190,10 @@ pub struct Calibration {
     /// this solve ([`Options::shift_directions`]; the larger of the independent-error and
     /// the grouped figure, like `std_dev`); `None` without one.
     pub shift_std_px: Option<f64>,
+    /// How many groups of views ([`Options::view_groups`]) the grouped σ came from, widened
+    /// for their number by [`few_groups_factor`]; `None` when `std_dev` is the
+    /// independent-error figure alone (no groups, or too few for a grouped σ).
+    pub sigma_groups: Option<usize>,
 }
 
 impl Calibration {
@@ -554,6 +558,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         (std_dev_points[i], std_dev[i]) = (f64::INFINITY, f64::INFINITY);
     }
     let mut shift_std_px = None;
+    let mut sigma_groups = None;
     let data: Vec<solve::ViewData> = kept
         .iter()
         .zip(&weights)
@@ -584,6 +589,8 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     if let Some(inv) = hessian.try_inverse() {
         let shift_scores = shift.as_ref().map(|t| &t.scores[..]);
         let grouped = grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &opts.view_groups, shift_scores);
+        sigma_groups = grouped.as_ref().map(|g| g.1);
+        let grouped = grouped.map(|g| g.0);
         let sd = |c: usize| {
             let var = inv[(c, c)];
             let points = if var > 0.0 && var.is_finite() { (sigma2 * var).sqrt() } else { f64::INFINITY };
@@ -619,12 +626,13 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         converged: sol.converged,
         circle_radius_m: opts.circle_radius,
         shift_std_px,
+        sigma_groups,
     })
 }
 
 /// Fewest groups of views a grouped covariance is made from: with fewer, the scatter of the
 /// groups says too little.
-const MIN_GROUPS: usize = 8;
+pub const MIN_GROUPS: usize = 8;
 
 /// How many standard deviations evcal's claims are made in: its targets and its users read
 /// an error within this many σ as covered.
@@ -662,8 +670,8 @@ fn student_t_quantile(z: f64, nu: f64) -> f64 {
 /// (`inv` = S⁻¹, the inverse reduced normal matrix; B the sum over groups of the outer
 /// product of each group's summed score, times G / (G − 1) for the one degree of freedom
 /// the solution takes), widened by [`few_groups_factor`]. The parameters are the free
-/// intrinsics, then the shared shift when `shift_scores` (per kept view) are given. `None`
-/// without groups, or with fewer than [`MIN_GROUPS`].
+/// intrinsics, then the shared shift when `shift_scores` (per kept view) are given; with the
+/// number of groups. `None` without groups, or with fewer than [`MIN_GROUPS`].
 #[allow(clippy::too_many_arguments)]
 fn grouped_covariance(
     data: &[solve::ViewData],
@@ -674,7 +682,7 @@ fn grouped_covariance(
     inv: &nalgebra::DMatrix<f64>,
     groups: &[u32],
     shift_scores: Option<&[f64]>,
-) -> Option<nalgebra::DMatrix<f64>> {
+) -> Option<(nalgebra::DMatrix<f64>, usize)> {
     if groups.is_empty() {
         return None;
     }
@@ -701,7 +709,7 @@ fn grouped_covariance(
         meat += s * s.transpose();
     }
     meat *= count as f64 / (count - 1) as f64 * few_groups_factor(count).powi(2);
-    Some(inv * meat * inv)
+    Some((inv * meat * inv, count))
 }
 
 /// The homography from board points (x, y; metres) to pixels that fits them best
@@ -881,6 +889,26 @@ mod test {
         }
         assert!((few_groups_factor(16) - 1.195).abs() < 0.001, "{}", few_groups_factor(16));
         assert!(few_groups_factor(1).is_infinite());
+    }
+
+    #[test]
+    fn the_groups_a_sigma_came_from_are_reported() {
+        let views = synthetic_views(&truth(), 20, 0.2, 7);
+        let plain = calibrate(&views, [346, 260], &Options::default()).unwrap();
+        assert_eq!(plain.sigma_groups, None, "no groups given");
+        // Two views a group: 10 groups, enough for a grouped σ, widened for so few.
+        let opts = Options { view_groups: (0..20).map(|v| v / 2).collect(), ..Options::default() };
+        let grouped = calibrate(&views, [346, 260], &opts).unwrap();
+        assert_eq!(grouped.sigma_groups, Some(10));
+        assert_eq!(grouped.intrinsics, plain.intrinsics, "the σ changes, not the solution");
+        for i in 0..4 {
+            assert!(grouped.std_dev[i] >= plain.std_dev[i], "{i}: never below the points' σ");
+        }
+        // Five groups are too few: the points' σ alone.
+        let opts = Options { view_groups: (0..20).map(|v| v / 4).collect(), ..Options::default() };
+        let few = calibrate(&views, [346, 260], &opts).unwrap();
+        assert_eq!(few.sigma_groups, None);
+        assert_eq!(few.std_dev, plain.std_dev);
     }
 
     #[test]

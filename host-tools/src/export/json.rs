@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
+//! sigma_groups rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
@@ -55,6 +55,11 @@ pub struct ResultJson {
     /// views do not fix at all, read back as infinite).
     #[serde(deserialize_with = "unbounded_as_null")]
     pub std_dev: Intrinsics,
+    /// How many groups of views (half-second stretches of the recording) `std_dev` came from,
+    /// widened for so few (`calib::few_groups_factor`); `null`: each point's error taken as
+    /// independent, too few groups to see how the views' errors are shared.
+    #[serde(default)]
+    pub sigma_groups: Option<usize>,
     /// Views set aside, and why.
     pub rejected: Vec<RejectedJson>,
     /// Points set aside by the robust rule (beyond 5 σ of all points' errors).
@@ -188,6 +193,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         mean_view_px: cal.mean_view_px,
         median_view_px: cal.median_view_px,
         std_dev: Intrinsics::from_array(cal.std_dev),
+        sigma_groups: cal.sigma_groups,
         rejected,
         stray_points: cal.stray_points,
         rms_all_px: cal.rms_all_px,
@@ -265,9 +271,16 @@ mod test {
         let text = serde_json::to_string_pretty(&json).unwrap();
         let keys = top_keys(&text);
         assert_eq!(keys[..KEYS.len()], KEYS, "{text}");
-        for extra in
-            ["std_dev", "rejected", "warnings", "image_width", "image_height", "median_view_px", "mean_view_px"]
-        {
+        for extra in [
+            "std_dev",
+            "sigma_groups",
+            "rejected",
+            "warnings",
+            "image_width",
+            "image_height",
+            "median_view_px",
+            "mean_view_px",
+        ] {
             assert!(keys[KEYS.len()..].iter().any(|k| k == extra), "{extra} missing: {keys:?}");
         }
 

@@ -519,6 +519,18 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             }
         }
     }
+    match c.sigma_groups {
+        Some(g) => outln!(
+            "  σ: the larger of each point's own and the scatter of {g} stretches of {} s of the recording, widened ×{:.2} for so few (a longer recording narrows it)",
+            evcal_host::pipeline::GROUP_SECONDS,
+            evcal_host::calib::few_groups_factor(g)
+        )?,
+        None => outln!(
+            "  σ: each point's error taken as independent (views in fewer than {} stretches of {} s: too few to see how their errors are shared, so it may be too small)",
+            evcal_host::calib::MIN_GROUPS,
+            evcal_host::pipeline::GROUP_SECONDS
+        )?,
+    }
     outln!(
         "coverage of the sensor by the points used ({:.0} % of cells):\n{}",
         100.0 * o.coverage.covered,
