@@ -37,6 +37,8 @@ fn main() {
         std::process::exit(2);
     };
     let mut with_shift = Vec::new();
+    // Per seed, the edge-shift-on solve's fx, fy, cx, cy errors in units of their σ.
+    let mut z: Vec<[f64; 4]> = Vec::new();
     for seed in &args[5..] {
         let Ok(seed) = seed.parse::<u64>() else {
             eprintln!("SEED: not a number: {seed}");
@@ -90,11 +92,16 @@ fn main() {
                 Ok(o) => {
                     let k = o.calibration.intrinsics;
                     let fx = 100.0 * (k.fx / cam.fx - 1.0);
+                    let sd = o.calibration.std_dev;
+                    let e = [k.fx - cam.fx, k.fy - cam.fy, k.cx - cam.cx, k.cy - cam.cy];
+                    let zs: [f64; 4] = std::array::from_fn(|i| e[i] / sd[i]);
                     if shift {
                         with_shift.push(fx);
+                        z.push(zs);
                     }
+                    let groups = o.calibration.sigma_groups.map_or("points' own".into(), |g| format!("{g} groups"));
                     println!(
-                        "seed {seed}, edge shift {}: grid in {}/{} windows, {} views, RMS {:.3} px, fx {fx:+.3} % fy {:+.3} % (σ {:.3} %), cx {:+.2} cy {:+.2} px, shift {}",
+                        "seed {seed}, edge shift {}: grid in {}/{} windows, {} views, RMS {:.3} px, fx {fx:+.3} % fy {:+.3} % (σ {:.3} %), cx {:+.2} cy {:+.2} px, error/σ {:+.1} {:+.1} {:+.1} {:+.1} (σ: {groups}), shift {}",
                         if shift { "on " } else { "off" },
                         views.stats.found,
                         views.stats.windows,
@@ -104,6 +111,10 @@ fn main() {
                         100.0 * o.calibration.std_dev[0] / k.fx,
                         k.cx - cam.cx,
                         k.cy - cam.cy,
+                        zs[0],
+                        zs[1],
+                        zs[2],
+                        zs[3],
                         o.edge_shift.map_or("none".into(), |e| format!("{:.3} ± {:.3} px", e.px, e.std_px)),
                     );
                 }
@@ -116,5 +127,17 @@ fn main() {
         let mean = with_shift.iter().sum::<f64>() / n;
         let sd = (with_shift.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         println!("fx with the shift correction over {} seeds: mean {mean:+.3} %, scatter {sd:.3} %", with_shift.len());
+    }
+    if z.len() > 1 {
+        // An honest σ makes these about 1, and beyond 3 one time in 370.
+        let names = ["fx", "fy", "cx", "cy"];
+        let parts: Vec<String> = (0..4)
+            .map(|i| {
+                let rms = (z.iter().map(|z| z[i] * z[i]).sum::<f64>() / z.len() as f64).sqrt();
+                let over = z.iter().filter(|z| z[i].abs() > 3.0).count();
+                format!("{} RMS {rms:.2} ({over} beyond 3)", names[i])
+            })
+            .collect();
+        println!("error/σ over {} seeds: {}", z.len(), parts.join(", "));
     }
 }

@@ -426,7 +426,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     let mut fitted = Vec::new();
     let (mut conic_u, mut conic_plain) = (Vec::new(), Vec::new());
     let mut radial_bins = [[0.0f64; 4]; 8];
-    let mut feats: Vec<[f64; 9]> = Vec::new();
+    let mut feats: Vec<[f64; 10]> = Vec::new();
     let mut fit_gap: Vec<([f64; 2], [f64; 2], [f64; 2])> = Vec::new();
     let mut view_shifts: Vec<f64> = Vec::new();
     let mut per_view_moved: Vec<View> = Vec::new();
@@ -505,6 +505,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
                     sp * (e[0] - k.cx) / 100.0,
                     sp * (e[1] - k.cy) / 100.0,
                     sp * rr,
+                    // The path's curvature, 1/px, signed as the acceleration across.
+                    if sp > 10.0 { acc_c / (sp * sp) } else { 0.0 },
                 ]);
             }
             view_acc.push(match outline(o, d + 1e-3) {
@@ -620,6 +622,16 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             println!(
                 "    along residual = {g0:+.4} px + speed · ({:+.2} ms {:+.2} ms/100 px · x {:+.2} ms/100 px · y {:+.2} ms/(100 px)² · ρ²)",
                 1e3 * g1, 1e3 * g2, 1e3 * g3, 1e3 * g4
+            );
+        }
+        if let [k0, k1] = ls(0, &[9]).as_slice() {
+            let ks: Vec<f64> = feats.iter().map(|f| f[9].abs()).collect();
+            let mut ks2 = ks.clone();
+            ks2.sort_by(f64::total_cmp);
+            println!(
+                "    across residual = {k0:+.4} px {k1:+.4} px² · curvature (median |curvature| {:.4}/px, 90 % {:.4}/px)",
+                ks2[ks2.len() / 2],
+                ks2[ks2.len() * 9 / 10]
             );
         }
         let (a, b) = (ls(0, &[2, 3]), ls(1, &[4, 5]));
@@ -796,6 +808,42 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             }
         }
         show(&format!("truth at the delay plus a constant {mean_c:+.4} px across the motion"), &shifted, &plain);
+    }
+    {
+        // Does the error across the motion depend on the motion's direction on the pixel
+        // grid (the sensor's rows and columns sample a ring's sides unevenly)? Least
+        // squares of it on the direction's harmonics, and the solve with that part taken out.
+        let harm = |u: [f64; 2]| {
+            let th = u[1].atan2(u[0]);
+            [(2.0 * th).cos(), (2.0 * th).sin(), (4.0 * th).cos(), (4.0 * th).sin()]
+        };
+        let mut a = nalgebra::SMatrix::<f64, 5, 5>::zeros();
+        let mut b = nalgebra::SVector::<f64, 5>::zeros();
+        for (u, r) in &motion {
+            let h = harm(*u);
+            let row = nalgebra::SVector::<f64, 5>::from([1.0, h[0], h[1], h[2], h[3]]);
+            let c = -r[0] * u[1] + r[1] * u[0];
+            a += row * row.transpose();
+            b += row * c;
+        }
+        if let Some(x) = a.lu().solve(&b) {
+            println!(
+                "    across residual = {:+.4} px {:+.4} cos 2θ {:+.4} sin 2θ {:+.4} cos 4θ {:+.4} sin 4θ (θ: the motion's direction on the sensor)",
+                x[0], x[1], x[2], x[3], x[4]
+            );
+            let mut moved = detected.clone();
+            let mut j = 0;
+            for v in moved.iter_mut() {
+                for p in v.image.iter_mut() {
+                    let (u, _) = motion[j];
+                    j += 1;
+                    let h = harm(u);
+                    let f = x[1] * h[0] + x[2] * h[1] + x[3] * h[2] + x[4] * h[3];
+                    *p = [p[0] + f * u[1], p[1] - f * u[0]];
+                }
+            }
+            show("detected less the across-motion part that follows the direction", &moved, &plain);
+        }
     }
     show("truth at the delay plus the residual along the motion only", &along, &plain);
     show("truth at the delay plus the residual across the motion only", &across, &plain);

@@ -8,6 +8,9 @@
 //! case's detection windows for a rerun of the host's steps). `--cases` lists the cases
 //! without running them; `--only TEXT` (repeatable) runs only the cases whose table row
 //! names TEXT (`--only "cone | good | 300 Hz"`), for a large sensor's slower cases.
+//! `--seed N` simulates every case with seed N instead of the table's
+//! (`sweep::SEED`): another draw of the pixels' mismatch, noise and clutter, to tell a
+//! case's bias from one run's scatter.
 //! `--lag` prints, under each case's row, how far its centres lag their circles along the
 //! motion at each image speed, against the simulator's truth (`sweep::lag_by_speed`).
 //!
@@ -36,6 +39,17 @@ fn main() {
             Some(s) if s > 0.0 => seconds = s,
             _ => {
                 eprintln!("--seconds needs a positive number");
+                std::process::exit(2);
+            }
+        }
+        argv.drain(i..i + 2);
+    }
+    let mut seed = sweep::SEED;
+    if let Some(i) = argv.iter().position(|a| a == "--seed") {
+        match argv.get(i + 1).and_then(|s| s.parse::<u64>().ok()) {
+            Some(s) => seed = s,
+            None => {
+                eprintln!("--seed needs a whole number");
                 std::process::exit(2);
             }
         }
@@ -75,14 +89,15 @@ fn main() {
             };
             let file = cache.as_ref().map(|d| {
                 d.join(format!(
-                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}{pixel}_{seconds}.json",
+                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}{pixel}_{seconds}{}.json",
                     c.pattern(),
                     c.trajectory.name(),
-                    c.light.name()
+                    c.light.name(),
+                    if seed == sweep::SEED { String::new() } else { format!("_seed{seed}") }
                 ))
             });
             // Recorded once for both the calibration and the lag.
-            let Some(rec) = sweep::record(&c, sensor, seconds, file.as_deref()) else { continue };
+            let Some(rec) = sweep::record(&c, sensor, seed, seconds, file.as_deref()) else { continue };
             match sweep::run_on(&c, sensor, &rec) {
                 Ok(o) => {
                     let (e, s) = (o.errors, o.sigmas);

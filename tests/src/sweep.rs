@@ -12,6 +12,9 @@ use evcal_host::{
 };
 use std::path::Path;
 
+/// The seed every case of the sweep's table is simulated with.
+pub const SEED: u64 = 5;
+
 /// One case of the sweep.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Case {
@@ -89,10 +92,17 @@ impl Case {
         Self { trajectory, light, photoreceptor_hz, blur_px: None, threshold: None, noise: Noise::Preset }
     }
 
-    /// The simulator's configuration of the case on `sensor` (seed 5), and its grid; `None`
-    /// for an unknown sensor.
+    /// The simulator's configuration of the case on `sensor` with the sweep's seed
+    /// ([`SEED`]), and its grid; `None` for an unknown sensor.
     pub fn config(&self, sensor: &str) -> Option<(SimConfig, Pattern)> {
-        let mut cfg = SimConfig::preset(sensor, self.pattern(), self.trajectory, self.light, 5)?;
+        self.config_seeded(sensor, SEED)
+    }
+
+    /// [`Case::config`] with another seed: the same scene and pixels, another draw of the
+    /// pixels' mismatch and noise and of the wall's clutter (the motion is the same), to tell a bias from one run's
+    /// scatter.
+    pub fn config_seeded(&self, sensor: &str, seed: u64) -> Option<(SimConfig, Pattern)> {
+        let mut cfg = SimConfig::preset(sensor, self.pattern(), self.trajectory, self.light, seed)?;
         cfg.pixel = PixelModel::physical(self.light, self.photoreceptor_hz);
         if let Some((t, m)) = self.threshold {
             cfg.pixel.threshold = t;
@@ -226,14 +236,15 @@ impl Outcome {
 /// settled at every window) and calibrates from it with `evcal calibrate`'s defaults; `Err`
 /// with the reason when there is no calibration at all. `cache`: see [`Recorded::simulate`].
 pub fn run(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Result<Outcome, String> {
-    run_on(case, sensor, &record(case, sensor, seconds, cache).ok_or_else(|| format!("unknown sensor {sensor}"))?)
+    let rec = record(case, sensor, SEED, seconds, cache).ok_or_else(|| format!("unknown sensor {sensor}"))?;
+    run_on(case, sensor, &rec)
 }
 
 /// The core's windows of `seconds` of `case` on `sensor`, simulated continuously (a slow
-/// photoreceptor must not be settled at every window); `None` for an unknown sensor.
-/// `cache`: see [`Recorded::simulate`].
-pub fn record(case: &Case, sensor: &str, seconds: f64, cache: Option<&Path>) -> Option<Recorded> {
-    let (cfg, _) = case.config(sensor)?;
+/// photoreceptor must not be settled at every window), simulated with `seed` ([`SEED`] for
+/// the sweep's table); `None` for an unknown sensor. `cache`: see [`Recorded::simulate`].
+pub fn record(case: &Case, sensor: &str, seed: u64, seconds: f64, cache: Option<&Path>) -> Option<Recorded> {
+    let (cfg, _) = case.config_seeded(sensor, seed)?;
     Some(Recorded::simulate(cfg, seconds, false, cache))
 }
 

@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! sigma_groups rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
+//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
@@ -55,11 +55,16 @@ pub struct ResultJson {
     /// views do not fix at all, read back as infinite).
     #[serde(deserialize_with = "unbounded_as_null")]
     pub std_dev: Intrinsics,
-    /// How many groups of views (half-second stretches of the recording) `std_dev` came from,
-    /// widened for so few (`calib::few_groups_factor`); `null`: each point's error taken as
-    /// independent, too few groups to see how the views' errors are shared.
+    /// How many groups of views (stretches of the recording, `sigma_group_s` long)
+    /// `std_dev` came from, widened for so few (`calib::few_groups_factor`); `null`: each
+    /// point's error taken as independent, too few groups to see how the views' errors are
+    /// shared.
     #[serde(default)]
     pub sigma_groups: Option<usize>,
+    /// How long each of those stretches is, s: half a second, shorter for views that span
+    /// under 4 s of the recording (`pipeline::group_seconds`); `null` with `sigma_groups`.
+    #[serde(default)]
+    pub sigma_group_s: Option<f64>,
     /// Views set aside, and why.
     pub rejected: Vec<RejectedJson>,
     /// Points set aside by the robust rule (beyond 5 σ of all points' errors).
@@ -194,6 +199,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         median_view_px: cal.median_view_px,
         std_dev: Intrinsics::from_array(cal.std_dev),
         sigma_groups: cal.sigma_groups,
+        sigma_group_s: None,
         rejected,
         stray_points: cal.stray_points,
         rms_all_px: cal.rms_all_px,
