@@ -359,11 +359,12 @@ fn solvable(views: &Views) -> Vec<usize> {
 /// smoothing's reach (70 ms); half a second still leaves 8 groups in 4 s of recording.
 /// Shorter recordings get shorter stretches ([`group_seconds`]).
 pub const GROUP_SECONDS: f64 = 0.5;
-/// The shortest stretch a group of views may span, s: still nearly twice the 0.14 s over
-/// which smoothing lets neighbouring views share windows, so that few views of a group share
-/// their events with the next group's. With it, 2 s of recording still make
-/// [`calib::MIN_GROUPS`] groups.
-pub const MIN_GROUP_SECONDS: f64 = 0.25;
+/// The shortest stretch a group of views may span, s: just over the 0.14 s over which
+/// smoothing lets neighbouring views share windows, so that no view shares its events with
+/// a group beyond the next. With it, 1.2 s of recording still make [`calib::MIN_GROUPS`]
+/// groups; on 1.5 s of a simulated cone (8 seeds) their σ covered every error within 3σ,
+/// where the points' own left cx beyond it in 3 seeds (docs/accuracy.md, "Short recordings").
+pub const MIN_GROUP_SECONDS: f64 = 0.15;
 
 /// The stretch of the recording, s, whose views form one group for the standard deviations:
 /// [`GROUP_SECONDS`], or shorter (down to [`MIN_GROUP_SECONDS`]) where the views span too
@@ -668,9 +669,10 @@ mod test {
         assert_eq!(group_seconds(&every_33_ms(8.0)), GROUP_SECONDS);
         assert_eq!(group_seconds(&every_33_ms(4.2)), GROUP_SECONDS);
         assert_eq!(group_seconds(&every_33_ms(1.0)), MIN_GROUP_SECONDS);
+        assert_eq!(group_seconds(&every_33_ms(0.3)), MIN_GROUP_SECONDS);
         assert_eq!(group_seconds(&[]), GROUP_SECONDS);
         // 3 s of views make groups short enough for the fewest a grouped σ is made from.
-        for seconds in [2.0, 2.5, 3.0, 3.5, 4.0] {
+        for seconds in [1.25, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0] {
             let origins = every_33_ms(seconds);
             let g = group_seconds(&origins);
             assert!((MIN_GROUP_SECONDS..=GROUP_SECONDS).contains(&g), "{seconds} s: {g}");
