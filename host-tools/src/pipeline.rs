@@ -671,7 +671,7 @@ mod test {
         assert_eq!(group_seconds(&every_33_ms(1.0)), MIN_GROUP_SECONDS);
         assert_eq!(group_seconds(&every_33_ms(0.3)), MIN_GROUP_SECONDS);
         assert_eq!(group_seconds(&[]), GROUP_SECONDS);
-        // 3 s of views make groups short enough for the fewest a grouped σ is made from.
+        // From 1.2 s of views up, the groups are short enough to be as many as a grouped σ needs.
         for seconds in [1.25, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0] {
             let origins = every_33_ms(seconds);
             let g = group_seconds(&origins);

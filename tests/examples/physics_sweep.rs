@@ -33,28 +33,8 @@ fn main() {
         only.push(text);
         argv.drain(i..i + 2);
     }
-    let mut seconds = 8.0;
-    if let Some(i) = argv.iter().position(|a| a == "--seconds") {
-        match argv.get(i + 1).and_then(|s| s.parse::<f64>().ok()) {
-            Some(s) if s > 0.0 => seconds = s,
-            _ => {
-                eprintln!("--seconds needs a positive number");
-                std::process::exit(2);
-            }
-        }
-        argv.drain(i..i + 2);
-    }
-    let mut seed = sweep::SEED;
-    if let Some(i) = argv.iter().position(|a| a == "--seed") {
-        match argv.get(i + 1).and_then(|s| s.parse::<u64>().ok()) {
-            Some(s) => seed = s,
-            None => {
-                eprintln!("--seed needs a whole number");
-                std::process::exit(2);
-            }
-        }
-        argv.drain(i..i + 2);
-    }
+    let seconds = args::take_value(&mut argv, "--seconds", "a positive number", |s: &f64| *s > 0.0).unwrap_or(8.0);
+    let seed = args::take_value(&mut argv, "--seed", "a whole number", |_: &u64| true).unwrap_or(sweep::SEED);
     let sensors = if argv.is_empty() { vec!["davis346".to_string()] } else { argv };
     println!("| sensor | motion | light | photoreceptor | focus | threshold, noise | fx error | fy error | cx error | cy error | error / σ (fx, fy, cx, cy) | RMS | views | targets |");
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");

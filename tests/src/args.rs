@@ -1,10 +1,33 @@
-//! Command-line pieces the examples share: `--cache DIR` and the simulator's preset names.
+//! Command-line pieces the examples share: `--cache DIR`, `--FLAG VALUE` options and the
+//! simulator's preset names.
 
 use evcal_host::{
     sim::{Light, SimConfig, Trajectory},
     views::grid::Pattern,
 };
 use std::path::PathBuf;
+
+/// Removes `flag VALUE` from `args` wherever it is and returns the value, or `None` when the
+/// flag is absent. A value missing or not accepted by `ok` ends the program with `need` (what
+/// the flag needs) and status 2.
+pub fn take_value<T: std::str::FromStr>(
+    args: &mut Vec<String>,
+    flag: &str,
+    need: &str,
+    ok: impl Fn(&T) -> bool,
+) -> Option<T> {
+    let i = args.iter().position(|a| a == flag)?;
+    match args.get(i + 1).and_then(|s| s.parse::<T>().ok()).filter(|v| ok(v)) {
+        Some(v) => {
+            args.drain(i..i + 2);
+            Some(v)
+        }
+        None => {
+            eprintln!("{flag} needs {need}");
+            std::process::exit(2);
+        }
+    }
+}
 
 /// Removes `--cache DIR` from `args` wherever it is and returns the directory.
 pub fn take_cache(args: &mut Vec<String>) -> Option<PathBuf> {

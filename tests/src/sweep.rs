@@ -99,8 +99,8 @@ impl Case {
     }
 
     /// [`Case::config`] with another seed: the same scene and pixels, another draw of the
-    /// pixels' mismatch and noise and of the wall's clutter (the motion is the same), to tell a bias from one run's
-    /// scatter.
+    /// pixels' mismatch and noise and of the wall's clutter (the motion is the same), to
+    /// tell a bias from one run's scatter.
     pub fn config_seeded(&self, sensor: &str, seed: u64) -> Option<(SimConfig, Pattern)> {
         let mut cfg = SimConfig::preset(sensor, self.pattern(), self.trajectory, self.light, seed)?;
         cfg.pixel = PixelModel::physical(self.light, self.photoreceptor_hz);
