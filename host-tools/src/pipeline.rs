@@ -548,7 +548,9 @@ pub fn no_calibration(result: &Result<Outcome, PipelineError>) -> Option<String>
 /// hold. Many views from varied poses average it down; a handful do not: on the simulated
 /// DVXplorer's dim spiral at a 100 Hz photoreceptor the discs gave 8 views and fx +16 %
 /// with σ 4.9 %, inside [`FAILED_RELATIVE`] and 3.4σ off, while its dim cone and spiral at
-/// 300 Hz read +0.18 % (σ 0.18 %) and −0.57 % (σ 0.33 %).
+/// 300 Hz read +0.18 % (σ 0.18 %) and −0.57 % (σ 0.33 %) (+0.004 % and −0.21 % since the
+/// discs' windows last as long as a DAVIS346's:
+/// [`disc_events_per_window`](crate::input::detections::disc_events_per_window)).
 pub const DISC_FALLBACK_FOCAL_RELATIVE: f64 = 0.01;
 
 /// Why a calibration from filled discs, tried where the rings gave none, is not taken: it is

@@ -263,8 +263,7 @@ fn windows_of(
         std::process::exit(1)
     });
     let mut windows = Vec::new();
-    let mut cfg = detections::host_config(sensor);
-    cfg.fit.filled_discs = filled_discs;
+    let mut cfg = if filled_discs { detections::host_disc_config(sensor) } else { detections::host_config(sensor) };
     if let Some(n) = x.events_per_window {
         cfg.window.events = n;
     }

@@ -17,6 +17,8 @@
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
 //! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
 
+use evcal_core::event::SensorSize;
+use evcal_host::input::detections::window_events_for;
 use evcal_tests::{args, sweep};
 
 fn main() {
@@ -67,9 +69,20 @@ fn main() {
             } else {
                 format!("_{}", c.pixel().replace([' ', ',', '±'], ""))
             };
+            // The discs' windows, where they are not the rings' (a larger sensor), name the
+            // file too: caches written with other disc windows do not serve.
+            let discs = c.config(sensor).map_or(String::new(), |(cfg, _)| {
+                let size = SensorSize { width: cfg.camera.width, height: cfg.camera.height };
+                let (rings, discs) = (window_events_for(size, false), window_events_for(size, true));
+                if discs == rings {
+                    String::new()
+                } else {
+                    format!("_discs{discs}")
+                }
+            });
             let file = cache.as_ref().map(|d| {
                 d.join(format!(
-                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}{pixel}_{seconds}{}.json",
+                    "sweep_{sensor}_{}_{}_{}_{hz}_{focus}{pixel}_{seconds}{discs}{}.json",
                     c.pattern(),
                     c.trajectory.name(),
                     c.light.name(),

@@ -50,9 +50,11 @@ impl Recorded {
         let det = detections::host_config(SensorSize { width: cam.width, height: cam.height });
         let (events, sim) =
             if windowed { simulate_windows(cfg, seconds, det.window, |_| {}) } else { simulate(cfg, seconds) };
+        let sensor = SensorSize { width: cam.width, height: cam.height };
         let detect = |filled_discs: bool| {
-            let mut det = det;
-            det.fit.filled_discs = filled_discs;
+            // The discs' windows are longer on a larger sensor (`host_disc_config`); the
+            // truth is kept for the rings' windows only.
+            let det = if filled_discs { detections::host_disc_config(sensor) } else { det };
             let mut windows = Vec::new();
             detections::run(events.iter().map(|e| Ok(*e)), det, |d| windows.push(WindowRecord::from_detection(d)))
                 .expect("simulated events are valid");

@@ -72,11 +72,60 @@ pub fn default_events_per_window(sensor: SensorSize) -> usize {
     (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
 }
 
+/// The host's default events per window where circles are fitted as filled discs
+/// (`FitConfig::filled_discs`): [`HOST_EVENTS_PER_WINDOW`] (8000) for a DAVIS346, scaled by
+/// the sensor's area, `8000 · W·H / (346·260)`, rounded to a multiple of
+/// [`EVENTS_PER_WINDOW_STEP`] and kept within 1 to [`HOST_MAX_EVENTS`]: 27 500 on 640x480,
+/// 32 000 (the most the host holds) on 1280x720.
+///
+/// Why the area and not the linear size of [`default_events_per_window`]: filled discs are
+/// the mark of slow pixels (a dark circle's pixels go on firing long after its edge passed),
+/// and what a slow pixel asks of a window is time, not pixels of motion. The event rate
+/// grows with the sensor's area, so the linear law makes a larger sensor's windows shorter
+/// (a 640x480 window 0.54 times a DAVIS346's), which is right for the motion when the pixels
+/// are quick and wrong when they answer later than the window lasts: the window then holds a
+/// different part of each disc's late events depending on how fast the circle moves (the
+/// reason the host's windows are twice the paper's, [`HOST_EVENTS_PER_WINDOW`]). The area
+/// keeps the DAVIS346's window duration. Measured on a simulated DVXplorer's dim cone at a
+/// 300 Hz photoreceptor (docs/accuracy.md, "Filled discs in windows of the DAVIS346's
+/// duration"): with 15 000 events a window lasts 5.8 ms, and the discs' lag along the
+/// motion varies with the circle's speed beyond what a view's pose takes; over seeds 5–8,
+/// fx +0.181, +0.368, +0.077, +0.258 % and cx +1.37, +0.20, +1.32, +2.43 px in windows of
+/// the linear law, +0.004, +0.146, +0.005, +0.142 % and +0.37, +0.74, +0.91, +1.68 px in
+/// windows of the area law (27 500 events, 11 ms).
+pub fn disc_events_per_window(sensor: SensorSize) -> usize {
+    let pixels = f64::from(sensor.width) * f64::from(sensor.height);
+    let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);
+    let events = HOST_EVENTS_PER_WINDOW as f64 * (pixels / reference);
+    let steps = (events / EVENTS_PER_WINDOW_STEP as f64).round().max(1.0) as usize;
+    (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
+}
+
+/// The host's default events per window on `sensor`: [`disc_events_per_window`] when
+/// `filled_discs`, else [`default_events_per_window`].
+pub fn window_events_for(sensor: SensorSize, filled_discs: bool) -> usize {
+    if filled_discs {
+        disc_events_per_window(sensor)
+    } else {
+        default_events_per_window(sensor)
+    }
+}
+
 /// The core's defaults for a sensor of `sensor`'s size with the host's window size
 /// ([`default_events_per_window`]): what `evcal detect` and `calibrate` run without options.
 pub fn host_config(sensor: SensorSize) -> DetectConfig {
     let mut cfg = DetectConfig::new(sensor);
     cfg.window.events = default_events_per_window(sensor);
+    cfg
+}
+
+/// [`host_config`] fitting filled discs where no ring fits, in windows of
+/// [`disc_events_per_window`]: what `evcal calibrate` detects again when the rings give no
+/// calibration.
+pub fn host_disc_config(sensor: SensorSize) -> DetectConfig {
+    let mut cfg = host_config(sensor);
+    cfg.fit.filled_discs = true;
+    cfg.window.events = disc_events_per_window(sensor);
     cfg
 }
 
@@ -366,6 +415,29 @@ mod test {
         }
         assert_eq!(d(1, 1), EVENTS_PER_WINDOW_STEP);
         assert_eq!(d(u16::MAX, u16::MAX), HOST_MAX_EVENTS);
+    }
+
+    #[test]
+    fn disc_windows_keep_the_reference_sensors_duration() {
+        let d = |w, h| disc_events_per_window(SensorSize::new(w, h));
+        // The same as the rings' on the reference sensor: only the scaling differs.
+        assert_eq!(d(346, 260), default_events_per_window(SensorSize::DAVIS346));
+        assert_eq!(d(640, 480), 27_500); // DVXplorer: 27 314
+        assert_eq!(d(320, 320), 9000); // GenX320: 9106
+        assert_eq!(d(1280, 720), HOST_MAX_EVENTS); // IMX636: 81 959, beyond what the host holds
+                                                   // Quadratic: twice the width and height, four times the events.
+        assert_eq!(d(173, 130), 2000);
+        for (w, h) in [(1, 1), (64, 48), (346, 260), (2048, 1536), (u16::MAX, u16::MAX)] {
+            let e = d(w, h);
+            assert!(
+                e % EVENTS_PER_WINDOW_STEP == 0 && (EVENTS_PER_WINDOW_STEP..=HOST_MAX_EVENTS).contains(&e),
+                "{w}x{h}: {e}"
+            );
+        }
+        let discs = host_disc_config(SensorSize::DVXPLORER);
+        assert!(discs.fit.filled_discs);
+        assert_eq!(discs.window.events, window_events_for(SensorSize::DVXPLORER, true));
+        assert_eq!(host_config(SensorSize::DVXPLORER).window.events, window_events_for(SensorSize::DVXPLORER, false));
     }
 
     #[test]

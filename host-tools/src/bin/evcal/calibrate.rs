@@ -379,10 +379,11 @@ fn first_clause(why: &str) -> &str {
 fn detect(a: &CalibrateArgs, filled_discs: bool) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
     let rec = a.read.open(&a.input, a.quiet, a.core.sensor.is_none())?;
     let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
-    let mut cfg = a.core.config(sensor)?;
-    cfg.fit.filled_discs = filled_discs;
+    // The core's options as given, but for the discs (and with them the default window).
+    let core = CoreArgs { filled_discs, ..a.core.clone() };
+    let cfg = core.config(sensor)?;
     if !a.quiet {
-        eprintln!("evcal: {}", a.core.window_line(&cfg));
+        eprintln!("evcal: {}", core.window_line(&cfg));
     }
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut rec = rec;

@@ -108,9 +108,12 @@ pub struct CoreArgs {
     /// In dim light a dark circle's slow pixels go on firing after its edge passed and fill
     /// it with events, most on a large sensor whose circles span more pixels: a DVXplorer at
     /// a slow photoreceptor found its grid in no window. With this flag a cluster no ring
-    /// fits is also tried as a filled disc, and the disc's outline gives its centre. Measured
-    /// on simulations (docs/accuracy.md, "Filled discs"): the DVXplorer's dim cone then
-    /// calibrates (fx +0.18 %, cx +1.4 px), but scenes whose rings hold read worse with
+    /// fits is also tried as a filled disc, and the disc's outline gives its centre. Windows
+    /// are then longer on a larger sensor (unless --events-per-window is given): the
+    /// DAVIS346's 8000 scaled by the area, so that they last as long as on a DAVIS346, as
+    /// slow pixels need (27500 on 640x480). Measured on simulations (docs/accuracy.md,
+    /// "Filled discs"): the DVXplorer's dim cone then calibrates (fx +0.004 %, cx +0.37 px;
+    /// +0.18 %, +1.4 px in the rings' shorter windows), but scenes whose rings hold read worse with
     /// discs among them (DAVIS346 dim-room spiral -0.29 -> -0.79 %). So `evcal detect` and
     /// `replay` fit none unless asked (the firmware's default too; `replay` asks the device,
     /// whose windows then take longer), and `evcal calibrate` fits them only when the rings
@@ -144,7 +147,7 @@ impl CoreArgs {
             window: WindowConfig {
                 events: self
                     .events_per_window
-                    .map_or_else(|| detections::default_events_per_window(sensor), |n| n as usize),
+                    .map_or_else(|| detections::window_events_for(sensor, self.filled_discs), |n| n as usize),
                 step_us: (self.step_ms * 1000.0).round() as u64,
             },
             cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts.max(1), eps_t: self.eps_t },
@@ -165,17 +168,37 @@ impl CoreArgs {
     /// The line saying how windows are cut, for standard error: how many events, how often,
     /// and whether that is the sensor's default (and how to change it).
     pub fn window_line(&self, cfg: &DetectConfig) -> String {
-        window_line(cfg.window, cfg.sensor, self.events_per_window.is_some())
+        let why = if self.events_per_window.is_some() {
+            WindowWhy::Given
+        } else if cfg.fit.filled_discs {
+            WindowWhy::Discs
+        } else {
+            WindowWhy::Sensor
+        };
+        window_line(cfg.window, cfg.sensor, why)
     }
 }
 
-/// "windows: N events every S ms (...)" for `window` on `sensor`; `given`: set by
-/// `--events-per-window` rather than the sensor's default.
-pub fn window_line(window: WindowConfig, sensor: SensorSize, given: bool) -> String {
-    let why = if given {
-        "--events-per-window".to_string()
-    } else {
-        format!("default for a {}x{} sensor; --events-per-window to change", sensor.width, sensor.height)
+/// Where a window's size came from, for [`window_line`].
+#[derive(Clone, Copy)]
+pub enum WindowWhy {
+    /// `--events-per-window`.
+    Given,
+    /// The sensor's default ([`detections::default_events_per_window`]).
+    Sensor,
+    /// The sensor's default for filled discs ([`detections::disc_events_per_window`]).
+    Discs,
+}
+
+/// "windows: N events every S ms (...)" for `window` on `sensor`, saying where N came from.
+pub fn window_line(window: WindowConfig, sensor: SensorSize, why: WindowWhy) -> String {
+    let (w, h) = (sensor.width, sensor.height);
+    let why = match why {
+        WindowWhy::Given => "--events-per-window".to_string(),
+        WindowWhy::Sensor => format!("default for a {w}x{h} sensor; --events-per-window to change"),
+        WindowWhy::Discs => format!(
+            "default for filled discs on a {w}x{h} sensor: the DAVIS346's 8000 scaled by the area, to last as long, as slow pixels need; --events-per-window to change"
+        ),
     };
     format!("windows: {} events every {:.0} ms ({why})", window.events, window.step_us as f64 * 1e-3)
 }

@@ -1,6 +1,6 @@
 //! `evcal simulate`: a simulated recording and its ground truth.
 
-use crate::common::{run_simulation, truth_json, window_line, window_truths, write_json};
+use crate::common::{run_simulation, truth_json, window_line, window_truths, write_json, WindowWhy};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_core::{event::SensorSize, window::WindowConfig};
@@ -152,7 +152,11 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             truths.len(),
             a.out.display(),
             truth_path.display(),
-            window_line(window, sensor, a.events_per_window.is_some())
+            window_line(
+                window,
+                sensor,
+                if a.events_per_window.is_some() { WindowWhy::Given } else { WindowWhy::Sensor }
+            )
         );
     }
     Ok(())
