@@ -65,9 +65,16 @@ pub const EVENTS_PER_WINDOW_STEP: usize = 500;
 /// of the 4:3 view a board is framed in). Measured on simulated 4x11 cones in good light
 /// (`tests/examples/window_sizes.rs`): see docs/accuracy.md, "Windows sized to the sensor".
 pub fn default_events_per_window(sensor: SensorSize) -> usize {
+    scaled_events_per_window(sensor, 0.5)
+}
+
+/// [`HOST_EVENTS_PER_WINDOW`] times the ratio of `sensor`'s pixel count to the
+/// [`REFERENCE_SENSOR`]'s raised to `power`, rounded to a multiple of
+/// [`EVENTS_PER_WINDOW_STEP`] and kept within 1 to [`HOST_MAX_EVENTS`].
+fn scaled_events_per_window(sensor: SensorSize, power: f64) -> usize {
     let pixels = f64::from(sensor.width) * f64::from(sensor.height);
     let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);
-    let events = HOST_EVENTS_PER_WINDOW as f64 * (pixels / reference).sqrt();
+    let events = HOST_EVENTS_PER_WINDOW as f64 * (pixels / reference).powf(power);
     let steps = (events / EVENTS_PER_WINDOW_STEP as f64).round().max(1.0) as usize;
     (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
 }
@@ -94,11 +101,7 @@ pub fn default_events_per_window(sensor: SensorSize) -> usize {
 /// the linear law, +0.004, +0.146, +0.005, +0.142 % and +0.37, +0.74, +0.91, +1.68 px in
 /// windows of the area law (27 500 events, 11 ms).
 pub fn disc_events_per_window(sensor: SensorSize) -> usize {
-    let pixels = f64::from(sensor.width) * f64::from(sensor.height);
-    let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);
-    let events = HOST_EVENTS_PER_WINDOW as f64 * (pixels / reference);
-    let steps = (events / EVENTS_PER_WINDOW_STEP as f64).round().max(1.0) as usize;
-    (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
+    scaled_events_per_window(sensor, 1.0)
 }
 
 /// The host's default events per window on `sensor`: [`disc_events_per_window`] when
@@ -424,8 +427,9 @@ mod test {
         assert_eq!(d(346, 260), default_events_per_window(SensorSize::DAVIS346));
         assert_eq!(d(640, 480), 27_500); // DVXplorer: 27 314
         assert_eq!(d(320, 320), 9000); // GenX320: 9106
-        assert_eq!(d(1280, 720), HOST_MAX_EVENTS); // IMX636: 81 959, beyond what the host holds
-                                                   // Quadratic: twice the width and height, four times the events.
+                                       // IMX636: 81 959, beyond what the host holds.
+        assert_eq!(d(1280, 720), HOST_MAX_EVENTS);
+        // Quadratic: half the width and height, a quarter of the events.
         assert_eq!(d(173, 130), 2000);
         for (w, h) in [(1, 1), (64, 48), (346, 260), (2048, 1536), (u16::MAX, u16::MAX)] {
             let e = d(w, h);
