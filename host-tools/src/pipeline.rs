@@ -306,10 +306,6 @@ pub struct Outcome {
     /// Why the result is no calibration at all, when the views leave a parameter so loose
     /// that no value printed could be trusted ([`verdict`]); `None` for a calibration.
     pub failure: Option<String>,
-    /// The stretch of the recording, s, whose views formed one group for the σ
-    /// ([`group_seconds`]); [`Calibration::sigma_groups`](calib::Calibration::sigma_groups)
-    /// says how many groups there were.
-    pub group_s: f64,
 }
 
 /// Why no calibration came out.
@@ -351,34 +347,6 @@ impl std::error::Error for PipelineError {}
 /// Indices of the views that may be solved on: all but the partial ones.
 fn solvable(views: &Views) -> Vec<usize> {
     (0..views.views.len()).filter(|&i| !views.partial.get(i).copied().unwrap_or(false)).collect()
-}
-
-/// Views within a stretch of this many seconds of the recording form one group for the
-/// standard deviations ([`calib::Options::view_groups`]). A centre's error persists while
-/// the motion and the light it sees change little: far longer than a window (33 ms) or the
-/// smoothing's reach (70 ms); half a second still leaves 8 groups in 4 s of recording.
-/// Shorter recordings get shorter stretches ([`group_seconds`]).
-pub const GROUP_SECONDS: f64 = 0.5;
-/// The shortest stretch a group of views may span, s: just over the 0.14 s over which
-/// smoothing lets neighbouring views share windows, so that no view shares its events with
-/// a group beyond the next. With it, 1.2 s of recording still make [`calib::MIN_GROUPS`]
-/// groups; on 1.5 s of a simulated cone (8 seeds) their σ covered every error within 3σ,
-/// where the points' own left cx beyond it in 3 seeds (docs/accuracy.md, "Short recordings").
-pub const MIN_GROUP_SECONDS: f64 = 0.15;
-
-/// The stretch of the recording, s, whose views form one group for the standard deviations:
-/// [`GROUP_SECONDS`], or shorter (down to [`MIN_GROUP_SECONDS`]) where the views span too
-/// little of the recording for [`calib::MIN_GROUPS`] of them. Without groups the σ would
-/// take every point's error as independent, and on 3 s of a simulated cone that σ left the
-/// error of fy beyond 3σ in 5 of 8 seeds (docs/accuracy.md, "Short recordings").
-pub fn group_seconds(origins: &[ViewOrigin]) -> f64 {
-    let (lo, hi) =
-        origins.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), o| (lo.min(o.t_s), hi.max(o.t_s)));
-    let span = hi - lo;
-    if !span.is_finite() {
-        return GROUP_SECONDS;
-    }
-    (span / calib::MIN_GROUPS as f64).clamp(MIN_GROUP_SECONDS, GROUP_SECONDS)
 }
 
 /// Chooses among `views` and solves.
@@ -425,9 +393,8 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         }
     }
     // Views of one stretch of the recording err alike; the σ printed must know it.
-    let group_s = group_seconds(&used_origins);
     let grouped = calib::Options {
-        view_groups: used_origins.iter().map(|o| (o.t_s / group_s).floor().max(0.0) as u32).collect(),
+        view_times: used_origins.iter().map(|o| o.t_s).collect(),
         shift_directions,
         ..setup.calib.clone()
     };
@@ -475,7 +442,6 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         coverage,
         advice,
         failure,
-        group_s,
     })
 }
 
@@ -661,26 +627,6 @@ mod test {
         assert_eq!(v.partial, [false, false, true, false, false]);
         assert_eq!(v.views[2].object.len(), 16);
         assert_eq!(solvable(&v), [0, 1, 3, 4]);
-    }
-
-    #[test]
-    fn short_recordings_get_short_groups_down_to_the_floor() {
-        let every_33_ms = |seconds: f64| -> Vec<ViewOrigin> {
-            (0..(seconds / 0.033) as u64).map(|k| ViewOrigin { window_seq: k, t_s: 0.033 * k as f64 }).collect()
-        };
-        assert_eq!(group_seconds(&every_33_ms(8.0)), GROUP_SECONDS);
-        assert_eq!(group_seconds(&every_33_ms(4.2)), GROUP_SECONDS);
-        assert_eq!(group_seconds(&every_33_ms(1.0)), MIN_GROUP_SECONDS);
-        assert_eq!(group_seconds(&every_33_ms(0.3)), MIN_GROUP_SECONDS);
-        assert_eq!(group_seconds(&[]), GROUP_SECONDS);
-        // From 1.2 s of views up, the groups are short enough to be as many as a grouped σ needs.
-        for seconds in [1.25, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0] {
-            let origins = every_33_ms(seconds);
-            let g = group_seconds(&origins);
-            assert!((MIN_GROUP_SECONDS..=GROUP_SECONDS).contains(&g), "{seconds} s: {g}");
-            let groups: std::collections::BTreeSet<u64> = origins.iter().map(|o| (o.t_s / g).floor() as u64).collect();
-            assert!(groups.len() >= calib::MIN_GROUPS, "{seconds} s: {} groups of {g} s", groups.len());
-        }
     }
 
     #[test]

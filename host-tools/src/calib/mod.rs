@@ -20,11 +20,16 @@
 //! worse than the others are set aside and named, with the reason; points far off are down-
 //! weighted (Huber) when `robust` is on.
 
+mod groups;
 mod init;
 mod k3;
 mod model;
 mod solve;
 
+pub use groups::{
+    few_groups_factor, group_seconds, groups_of, COVERAGE_SIGMAS, GROUP_PLACEMENTS, GROUP_SECONDS, MIN_GROUPS,
+    MIN_GROUP_SECONDS,
+};
 pub use k3::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 pub use model::{outline_offset, Intrinsics, Pose, PARAMETER_NAMES};
 
@@ -91,11 +96,13 @@ pub struct Options {
     /// fit measures, instead of the projection of the circle's centre. `None`: the latter, as
     /// for points that are the projections themselves (a chessboard's corners).
     pub circle_radius: Option<f64>,
-    /// Per view (by index in the views given), a group: views whose errors may be alike
-    /// (the windows of a stretch of the recording). The standard deviations then also come
-    /// from how the groups pull on the parameters (a cluster-robust, "sandwich" covariance),
-    /// and the larger is reported. Empty: every point's error is taken as independent.
-    pub view_groups: Vec<u32>,
+    /// Per view (by index in the views given), when it was seen, s. The views kept are
+    /// grouped by stretches of the recording ([`group_seconds`] of their times), whose
+    /// views' errors may be alike; the standard deviations then also come from how the
+    /// groups pull on the parameters (a cluster-robust, "sandwich" covariance), and the
+    /// larger is reported. Empty (or not one per view): every point's error is taken as
+    /// independent.
+    pub view_times: Vec<f64>,
 }
 
 impl Default for Options {
@@ -110,7 +117,7 @@ impl Default for Options {
             max_iterations: 100,
             tolerance: 1e-12,
             circle_radius: None,
-            view_groups: Vec::new(),
+            view_times: Vec::new(),
             shift_directions: Vec::new(),
         }
     }
@@ -160,7 +167,7 @@ pub struct Calibration {
     pub median_view_px: f64,
     /// One standard deviation of each parameter (0 for a fixed one), in the order of
     /// [`PARAMETER_NAMES`]: the larger of `std_dev_points` and, when the views were grouped
-    /// ([`Options::view_groups`]), of what the scatter of the groups says (widened for their
+    /// ([`Options::view_times`]), of what the scatter of the groups says (widened for their
     /// number: [`few_groups_factor`]). The pipeline adds
     /// to it what the edges' other lag model changes
     /// ([`ByThickness`](crate::views::edge_shift::ByThickness)).
@@ -190,10 +197,14 @@ pub struct Calibration {
     /// this solve ([`Options::shift_directions`]; the larger of the independent-error and
     /// the grouped figure, like `std_dev`); `None` without one.
     pub shift_std_px: Option<f64>,
-    /// How many groups of views ([`Options::view_groups`]) the grouped σ came from, widened
+    /// How many groups of views ([`Options::view_times`]) the grouped σ came from, widened
     /// for their number by [`few_groups_factor`]; `None` when `std_dev` is the
-    /// independent-error figure alone (no groups, or too few for a grouped σ).
+    /// independent-error figure alone (no times, or too few groups for a grouped σ).
     pub sigma_groups: Option<usize>,
+    /// How long a stretch of the recording each group spans, s ([`group_seconds`] of the
+    /// kept views' times): the one the grouped σ came from, or with too few groups the
+    /// shortest tried. `None` without times.
+    pub sigma_group_s: Option<f64>,
 }
 
 impl Calibration {
@@ -559,6 +570,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     }
     let mut shift_std_px = None;
     let mut sigma_groups = None;
+    let mut sigma_group_s = None;
     let data: Vec<solve::ViewData> = kept
         .iter()
         .zip(&weights)
@@ -588,7 +600,10 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     };
     if let Some(inv) = hessian.try_inverse() {
         let shift_scores = shift.as_ref().map(|t| &t.scores[..]);
-        let grouped = grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &opts.view_groups, shift_scores);
+        let grouped = view_groups(opts, views.len(), &kept).and_then(|(groups, group_s)| {
+            sigma_group_s = Some(group_s);
+            grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &groups, shift_scores)
+        });
         sigma_groups = grouped.as_ref().map(|g| g.1);
         let grouped = grouped.map(|g| g.0);
         let sd = |c: usize| {
@@ -627,51 +642,41 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         circle_radius_m: opts.circle_radius,
         shift_std_px,
         sigma_groups,
+        sigma_group_s,
     })
 }
 
-/// Fewest groups of views a grouped covariance is made from: with fewer, the scatter of the
-/// groups says too little.
-pub const MIN_GROUPS: usize = 8;
-
-/// How many standard deviations evcal's claims are made in: its targets and its users read
-/// an error within this many σ as covered.
-pub const COVERAGE_SIGMAS: f64 = 3.0;
-
-/// What the grouped covariance's σ is widened by, with `groups` groups of views.
-///
-/// A σ estimated from the scatter of G groups is itself uncertain, and an error over it
-/// follows Student's t with G − 1 degrees of freedom, not a normal: with 16 groups (8 s of
-/// recording) an error beyond 3 such σ is 3.3 times as likely as a normal's beyond 3σ. So
-/// the grouped σ is scaled by t_{G−1}'s quantile over the normal's at [`COVERAGE_SIGMAS`],
-/// so that the printed 3σ covers what a normal's does (Cameron and Miller 2015, on
-/// cluster-robust inference with few clusters): ×1.51 with 8 groups, ×1.20 with 16, ×1.02
-/// with 120 (a minute).
-pub fn few_groups_factor(groups: usize) -> f64 {
-    if groups < 2 {
-        return f64::INFINITY;
+/// Each kept view's group (by index in the views given; the others' `u32::MAX`), grouped
+/// by stretches of the recording as long as the kept views' times ask for
+/// ([`group_seconds`]), in each of [`GROUP_PLACEMENTS`] placements of the groups' bounds;
+/// and that stretch, s. `None` without one time per view.
+fn view_groups(opts: &Options, n_views: usize, kept: &[usize]) -> Option<(Vec<Vec<u32>>, f64)> {
+    if opts.view_times.len() != n_views || n_views == 0 {
+        return None;
     }
-    student_t_quantile(COVERAGE_SIGMAS, (groups - 1) as f64) / COVERAGE_SIGMAS
-}
-
-/// Student's t quantile with `nu` degrees of freedom at the probability a standard normal
-/// has below `z`: the Cornish–Fisher expansion in 1/ν to its fourth term (within 0.1 % of
-/// the exact quantile at z = 3 from ν = 7 up; the terms' coefficients are Abramowitz and
-/// Stegun 26.7.5).
-fn student_t_quantile(z: f64, nu: f64) -> f64 {
-    let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
-    z + (z3 + z) / (4.0 * nu)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
-        + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
+    let times: Vec<f64> = kept.iter().map(|&v| opts.view_times[v]).collect();
+    let group_s = group_seconds(&times);
+    let placements = (0..GROUP_PLACEMENTS)
+        .map(|p| {
+            let lead = group_s * p as f64 / GROUP_PLACEMENTS as f64;
+            let mut groups = vec![u32::MAX; n_views];
+            for (&v, g) in kept.iter().zip(groups_of(&times, group_s, lead).0) {
+                groups[v] = g;
+            }
+            groups
+        })
+        .collect();
+    Some((placements, group_s))
 }
 
 /// The free parameters' covariance from the scatter of the groups of views, `S⁻¹ B S⁻¹`
 /// (`inv` = S⁻¹, the inverse reduced normal matrix; B the sum over groups of the outer
 /// product of each group's summed score, times G / (G − 1) for the one degree of freedom
-/// the solution takes), widened by [`few_groups_factor`]. The parameters are the free
-/// intrinsics, then the shared shift when `shift_scores` (per kept view) are given; with the
-/// number of groups. `None` without groups, or with fewer than [`MIN_GROUPS`].
+/// the solution takes), widened by [`few_groups_factor`], and averaged over the placements
+/// of the groups' bounds given (each a group per view) that make at least [`MIN_GROUPS`]
+/// groups. The parameters are the free intrinsics, then the shared shift when
+/// `shift_scores` (per kept view) are given; with the fewest groups of a placement used.
+/// `None` without placements, or with none of enough groups.
 #[allow(clippy::too_many_arguments)]
 fn grouped_covariance(
     data: &[solve::ViewData],
@@ -680,36 +685,46 @@ fn grouped_covariance(
     poses: &[Pose],
     free: &solve::Free,
     inv: &nalgebra::DMatrix<f64>,
-    groups: &[u32],
+    placements: &[Vec<u32>],
     shift_scores: Option<&[f64]>,
 ) -> Option<(nalgebra::DMatrix<f64>, usize)> {
-    if groups.is_empty() {
+    if placements.is_empty() {
         return None;
     }
     let scores = solve::view_scores(data, k, poses, free)?;
     let n = inv.nrows();
     let n_intrinsics = n - usize::from(shift_scores.is_some());
-    let mut sums: std::collections::BTreeMap<u32, nalgebra::DVector<f64>> = std::collections::BTreeMap::new();
-    for (j, (&v, s)) in kept.iter().zip(&scores).enumerate() {
-        let g = *groups.get(v)?;
-        let sum = sums.entry(g).or_insert_with(|| nalgebra::DVector::zeros(n));
-        for c in 0..n_intrinsics {
-            sum[c] += s[c];
+    let mut meat = nalgebra::DMatrix::<f64>::zeros(n, n);
+    let (mut used, mut fewest) = (0usize, usize::MAX);
+    for groups in placements {
+        let mut sums: std::collections::BTreeMap<u32, nalgebra::DVector<f64>> = std::collections::BTreeMap::new();
+        for (j, (&v, s)) in kept.iter().zip(&scores).enumerate() {
+            let g = *groups.get(v)?;
+            let sum = sums.entry(g).or_insert_with(|| nalgebra::DVector::zeros(n));
+            for c in 0..n_intrinsics {
+                sum[c] += s[c];
+            }
+            if let Some(t) = shift_scores {
+                sum[n_intrinsics] += *t.get(j)?;
+            }
         }
-        if let Some(t) = shift_scores {
-            sum[n_intrinsics] += *t.get(j)?;
+        let count = sums.len();
+        if count < MIN_GROUPS {
+            continue;
         }
+        let mut b = nalgebra::DMatrix::<f64>::zeros(n, n);
+        for s in sums.values() {
+            b += s * s.transpose();
+        }
+        meat += b * (count as f64 / (count - 1) as f64 * few_groups_factor(count).powi(2));
+        used += 1;
+        fewest = fewest.min(count);
     }
-    let count = sums.len();
-    if count < MIN_GROUPS {
+    if used == 0 {
         return None;
     }
-    let mut meat = nalgebra::DMatrix::<f64>::zeros(n, n);
-    for s in sums.values() {
-        meat += s * s.transpose();
-    }
-    meat *= count as f64 / (count - 1) as f64 * few_groups_factor(count).powi(2);
-    Some((inv * meat * inv, count))
+    meat /= used as f64;
+    Some((inv * meat * inv, fewest))
 }
 
 /// The homography from board points (x, y; metres) to pixels that fits them best
@@ -862,52 +877,28 @@ mod test {
         }
     }
 
-    /// Simpson's rule over `[a, b]` in `n` (even) steps.
-    fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
-        let h = (b - a) / n as f64;
-        let inner: f64 = (1..n).map(|i| f(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 }).sum();
-        (f(a) + f(b) + inner) * h / 3.0
-    }
-
-    #[test]
-    fn few_groups_widen_sigma_so_that_three_of_them_cover_as_a_normals_do() {
-        // A standard normal beyond 3.
-        let phi = |x: f64| (-0.5 * x * x).exp() / std::f64::consts::TAU.sqrt();
-        let normal_tail = simpson(phi, COVERAGE_SIGMAS, 40.0, 20_000);
-        let mut last = f64::INFINITY;
-        for groups in [8, 12, 16, 41, 120] {
-            let nu = (groups - 1) as f64;
-            let q = COVERAGE_SIGMAS * few_groups_factor(groups);
-            // Student's t beyond q, with x = √ν·tan θ (its density ∝ cos^(ν−1) θ in θ).
-            let density = |th: f64| th.cos().powf(nu - 1.0);
-            let half = std::f64::consts::FRAC_PI_2;
-            let tail = simpson(density, (q / nu.sqrt()).atan(), half, 20_000) / simpson(density, -half, half, 40_000);
-            assert!((tail / normal_tail - 1.0).abs() < 0.01, "{groups} groups: tail {tail} against {normal_tail}");
-            let factor = few_groups_factor(groups);
-            assert!(factor > 1.0 && factor < last, "{groups} groups: ×{factor}");
-            last = factor;
-        }
-        assert!((few_groups_factor(16) - 1.195).abs() < 0.001, "{}", few_groups_factor(16));
-        assert!(few_groups_factor(1).is_infinite());
-    }
-
     #[test]
     fn the_groups_a_sigma_came_from_are_reported() {
         let views = synthetic_views(&truth(), 20, 0.2, 7);
         let plain = calibrate(&views, [346, 260], &Options::default()).unwrap();
         assert_eq!(plain.sigma_groups, None, "no groups given");
-        // Two views a group: 10 groups, enough for a grouped σ, widened for so few.
-        let opts = Options { view_groups: (0..20).map(|v| v / 2).collect(), ..Options::default() };
+        // A view every quarter second: two views a half-second group, 10 groups, enough for
+        // a grouped σ, widened for so few.
+        let opts = Options { view_times: (0..20).map(|v| 0.25 * v as f64).collect(), ..Options::default() };
         let grouped = calibrate(&views, [346, 260], &opts).unwrap();
-        assert_eq!(grouped.sigma_groups, Some(10));
+        assert_eq!((grouped.sigma_groups, grouped.sigma_group_s), (Some(10), Some(GROUP_SECONDS)));
         assert_eq!(grouped.intrinsics, plain.intrinsics, "the σ changes, not the solution");
         for i in 0..4 {
             assert!(grouped.std_dev[i] >= plain.std_dev[i], "{i}: never below the points' σ");
         }
-        // Five groups are too few: the points' σ alone.
-        let opts = Options { view_groups: (0..20).map(|v| v / 4).collect(), ..Options::default() };
+        // Views in five bursts of four, too short to part into enough groups: the points'
+        // σ alone.
+        let opts = Options {
+            view_times: (0..20).map(|v| (v / 4) as f64 + 0.01 * (v % 4) as f64).collect(),
+            ..Options::default()
+        };
         let few = calibrate(&views, [346, 260], &opts).unwrap();
-        assert_eq!(few.sigma_groups, None);
+        assert_eq!((few.sigma_groups, few.sigma_group_s), (None, Some(MIN_GROUP_SECONDS)));
         assert_eq!(few.std_dev, plain.std_dev);
     }
 

@@ -61,8 +61,8 @@ pub struct ResultJson {
     /// shared.
     #[serde(default)]
     pub sigma_groups: Option<usize>,
-    /// How long each of those stretches is, s: half a second, shorter for views that span
-    /// under 4 s of the recording (`pipeline::group_seconds`); `null` with `sigma_groups`.
+    /// How long each of those stretches is, s: half a second, shorter (down to 0.15 s) for
+    /// views in fewer half-seconds (`calib::group_seconds`); `null` with `sigma_groups`.
     #[serde(default)]
     pub sigma_group_s: Option<f64>,
     /// Views set aside, and why.
@@ -199,7 +199,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         median_view_px: cal.median_view_px,
         std_dev: Intrinsics::from_array(cal.std_dev),
         sigma_groups: cal.sigma_groups,
-        sigma_group_s: None,
+        sigma_group_s: cal.sigma_group_s.filter(|_| cal.sigma_groups.is_some()),
         rejected,
         stray_points: cal.stray_points,
         rms_all_px: cal.rms_all_px,

@@ -117,10 +117,6 @@ pub struct Export<'a> {
     pub calibration_time: Option<&'a str>,
     /// The shift taken out of the centres before the solve, for the JSON result.
     pub edge_shift: Option<crate::views::edge_shift::EdgeShift>,
-    /// How long a stretch of the recording each group of views behind the σ spans, s
-    /// ([`crate::pipeline::group_seconds`]), for the JSON result (written only when the σ
-    /// came from groups).
-    pub sigma_group_s: Option<f64>,
     /// Why the result is no calibration ([`crate::pipeline::verdict`]): every file says so
     /// (the JSON's `calibration_failed`, a comment at the top of each YAML file).
     pub failure: Option<&'a str>,
@@ -150,7 +146,6 @@ impl<'a> Export<'a> {
             rostopic: "/dvs/events",
             calibration_time: None,
             edge_shift: None,
-            sigma_group_s: None,
             failure: None,
         }
     }
@@ -180,7 +175,6 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     let (kalibr, warnings) = kalibr_camchain_yaml(kalibr_cal, export.rostopic);
     let mut json = result_json(cal, export.origins, export.counts)?;
     json.edge_shift = export.edge_shift;
-    json.sigma_group_s = export.sigma_group_s.filter(|_| json.sigma_groups.is_some());
     json.calibration_failed = export.failure.map(str::to_owned);
     json.warnings.extend(warnings.iter().cloned());
     let json = serde_json::to_string_pretty(&json)? + "\n";

@@ -520,17 +520,16 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             }
         }
     }
+    let group_s = c.sigma_group_s.unwrap_or(evcal_host::calib::MIN_GROUP_SECONDS);
     match c.sigma_groups {
         Some(g) => outln!(
-            "  σ: the larger of each point's own and the scatter of {g} stretches of {:.2} s of the recording, widened ×{:.2} for so few (a longer recording narrows it)",
-            o.group_s,
+            "  σ: the larger of each point's own and the scatter of {g} stretches of {group_s:.2} s of the recording, widened ×{:.2} for so few (a longer recording narrows it)",
             evcal_host::calib::few_groups_factor(g)
         )?,
         None => outln!(
-            "  σ: each point's error taken as independent (views in fewer than {} stretches of {:.2} s: too few to see how their errors are shared, so it may be too small; views over at least {} s of the recording give them)",
+            "  σ: each point's error taken as independent (views in fewer than {} stretches of {group_s:.2} s: too few to see how their errors are shared, so it may be too small; views all through at least {} s of the recording give them)",
             evcal_host::calib::MIN_GROUPS,
-            o.group_s,
-            evcal_host::calib::MIN_GROUPS as f64 * evcal_host::pipeline::MIN_GROUP_SECONDS
+            evcal_host::calib::MIN_GROUPS as f64 * evcal_host::calib::MIN_GROUP_SECONDS
         )?,
     }
     outln!(
@@ -551,7 +550,6 @@ pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Re
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
-    e.sigma_group_s = Some(o.group_s);
     e.failure = o.failure.as_deref();
     let written = write_all(dir, &e)?;
     if let Some(j) = json {
