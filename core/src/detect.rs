@@ -105,19 +105,40 @@ impl Clock for () {
 /// The working memory of one window's clustering and fits, which [`process`] takes from its
 /// caller: kept in the [`Detector`] (so in its `static` on the device, where the linker
 /// counts it) instead of on the stack while a window is processed. Nothing in it outlives a
-/// window.
+/// window, and nothing in it outlives its stage: the clustering's column tables are done
+/// with before the first fit, so the fits' events take the same memory (6 KiB of the
+/// device's static RAM saved, the architecture's 64 KiB kept). Each stage clears what it
+/// uses first, so no result depends on what the other left.
 #[derive(Debug, Clone)]
 pub struct Scratch {
-    /// The clustering's sort buckets and column tables.
-    tables: ColumnTables,
-    /// The fits' events in their local frames (see `fit_with`).
-    fit: [[f32; 3]; FIT_SCRATCH_EVENTS],
+    /// The clustering's sort buckets and column tables ([`ColumnTables`], `u16`), then the
+    /// fits' events in their local frames (see `fit_with`; `[f32; 3]` each), as words.
+    words: [u32; SCRATCH_WORDS],
 }
+
+/// Words of [`Scratch`]: the column tables' cells, two to a word.
+const SCRATCH_WORDS: usize = TABLE_CELLS / 2;
+const _: () = assert!(2 * SCRATCH_WORDS == TABLE_CELLS && 3 * FIT_SCRATCH_EVENTS <= SCRATCH_WORDS);
 
 impl Scratch {
     /// Scratch memory, zeroed.
     pub const fn new() -> Self {
-        Self { tables: [0; TABLE_CELLS], fit: [[0.0; 3]; FIT_SCRATCH_EVENTS] }
+        Self { words: [0; SCRATCH_WORDS] }
+    }
+
+    /// The clustering's column tables.
+    fn tables(&mut self) -> &mut ColumnTables {
+        bytemuck::must_cast_mut(&mut self.words)
+    }
+
+    /// The fits' events, [`FIT_SCRATCH_EVENTS`] of them (in the tables' memory: the
+    /// clustering must be done).
+    fn fit(&mut self) -> &mut [[f32; 3]] {
+        match self.words.first_chunk_mut::<{ 3 * FIT_SCRATCH_EVENTS }>() {
+            Some(words) => bytemuck::must_cast_mut::<_, [[f32; 3]; FIT_SCRATCH_EVENTS]>(words),
+            // Not reached: the words hold the fits' events (asserted above).
+            None => &mut [],
+        }
     }
 }
 
@@ -265,7 +286,7 @@ pub fn process<const N: usize, const C: usize>(
 ) {
     let t0 = clock.now();
     // The configured `min_pts` is the edges' own density; the background's is added to it.
-    let background = background_per_neighbourhood(events, cfg.sensor, cfg.cluster.eps, &mut scratch.tables);
+    let background = background_per_neighbourhood(events, cfg.sensor, cfg.cluster.eps, scratch.tables());
     let min_pts = min_pts_above_background(cfg.cluster.min_pts, background);
     let cfg = DetectConfig { cluster: ClusterConfig { min_pts, ..cfg.cluster }, ..*cfg };
     process_at_threshold(clusterer, scratch, events, &cfg, out, clock, t0);
@@ -283,7 +304,7 @@ fn process_at_threshold<const N: usize, const C: usize>(
     t0: u32,
 ) {
     let t_ref = out.info.t_ref_us.saturating_sub(out.info.t_first_us).min(u64::from(u32::MAX)) as u32;
-    let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster, &mut scratch.tables);
+    let cs: ClusterStats = clusterer.cluster(events, cfg.sensor, &cfg.cluster, scratch.tables());
     let mut starts: heapless::Vec<Option<Circle>, C> = heapless::Vec::new();
     let mut extents: heapless::Vec<Extent, C> = heapless::Vec::new();
     let merged = join_crescents(clusterer, events, t_ref, &mut starts, &mut extents);
@@ -295,7 +316,7 @@ fn process_at_threshold<const N: usize, const C: usize>(
     let t1 = clock.now();
     // The fits' events in their local frames (see `fit_with`), cleared as a fresh array
     // would be: no window's result may depend on the one before.
-    let scratch = &mut scratch.fit;
+    let scratch = scratch.fit();
     scratch.fill([0.0; 3]);
     let mut fits: heapless::Vec<Option<Centre>, C> = heapless::Vec::new();
     for (k, r) in ranges.iter().enumerate() {

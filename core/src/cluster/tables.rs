@@ -4,9 +4,9 @@
 use super::{rows::Row, MAX_REACH_ROWS};
 use crate::window::WindowEvent;
 
-/// Cells (`u16`, 16 KiB, on the stack while a window is clustered) of the column tables of
-/// the spatial sweep: one table per row within reach of the row being visited, above and
-/// below, each as wide as the events' columns plus the neighbourhood either side. The
+/// Cells (`u16`, 16 KiB, in the caller's scratch: the detector's `Scratch`) of the column
+/// tables of the spatial sweep: one table per row within reach of the row being visited,
+/// above and below, each as wide as the events' columns plus the neighbourhood either side. The
 /// defaults on a DAVIS346 take 7 rows of 357 cells. Sweeps that need more (wider sensors or
 /// neighbourhoods) and ST-DBSCAN walk cursors along the rows instead, as exactly but slower.
 pub const TABLE_CELLS: usize = 8192;
