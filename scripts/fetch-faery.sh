@@ -20,9 +20,14 @@ root="${EVCAL_TEST_DATA:-$PWD/target/test-data}"
 dest="$root/faery-$VERSION"
 stamp="$dest/.fetched-$SHA256"
 
+# One fetch at a time: a test binary's tests call this at once, and a second caller must wait
+# for the first to finish, not read the directory while it is being replaced.
+mkdir -p "$root"
+exec 9>"$root/.fetch-faery.lock"
+flock 9
+
 if [ ! -f "$stamp" ]; then
   echo "fetch-faery: downloading faery $VERSION's source distribution from PyPI" >&2
-  mkdir -p "$root"
   tmp="$(mktemp -d "$root/.fetch.XXXXXX")"
   trap 'rm -rf "$tmp"' EXIT
   python3 -m pip download --quiet --disable-pip-version-check --no-deps --no-binary faery \
