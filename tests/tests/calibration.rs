@@ -403,7 +403,7 @@ fn grouped_sigma_covers_the_error(seconds: f64, unseen: Option<(f64, f64)>) {
             unseen,
         });
         assert!(
-            f.sigma_groups.is_some_and(|g| g >= evcal_host::calib::MIN_GROUPS),
+            f.sigma_groups.is_some_and(|g| g >= evcal_host::calib::GROUPS_WANTED),
             "seed {seed}: {:?}",
             f.sigma_groups
         );

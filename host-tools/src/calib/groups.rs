@@ -11,14 +11,20 @@
 pub const GROUP_SECONDS: f64 = 0.5;
 /// The shortest stretch a group of views may span, s: just over the 0.14 s over which
 /// smoothing lets neighbouring views share windows, so that no view shares its events with
-/// a group beyond the next. With it, 1.2 s of recording still make [`MIN_GROUPS`] groups;
+/// a group beyond the next. With it, 1.2 s of recording still make [`GROUPS_WANTED`] groups;
 /// on 1.5 s of a simulated cone (8 seeds) their σ covered every error within 3σ, where the
 /// points' own left cx beyond it in 3 seeds (docs/accuracy.md, "Short recordings").
 pub const MIN_GROUP_SECONDS: f64 = 0.15;
 
-/// Fewest groups of views a grouped covariance is made from: with fewer, the scatter of the
-/// groups says too little.
-pub const MIN_GROUPS: usize = 8;
+/// How many groups the stretch is shortened for ([`group_seconds`]): from 8 groups up the
+/// widening for so few ([`few_groups_factor`]) is at most ×1.6.
+pub const GROUPS_WANTED: usize = 8;
+
+/// Fewest groups of views a grouped covariance is made from. Fewer groups make a wider σ
+/// ([`few_groups_factor`]: ×6.4 with 3, ×3.4 with 4), not a smaller one; two groups'
+/// scatter is a single difference, which Student's t with one degree of freedom (a Cauchy)
+/// would widen 78 times.
+pub const MIN_GROUPS: usize = 3;
 
 /// How many standard deviations evcal's claims are made in: its targets and its users read
 /// an error within this many σ as covered.
@@ -31,31 +37,53 @@ pub const COVERAGE_SIGMAS: f64 = 3.0;
 /// recording) an error beyond 3 such σ is 3.3 times as likely as a normal's beyond 3σ. So
 /// the grouped σ is scaled by t_{G−1}'s quantile over the normal's at [`COVERAGE_SIGMAS`],
 /// so that the printed 3σ covers what a normal's does (Cameron and Miller 2015, on
-/// cluster-robust inference with few clusters): ×1.51 with 8 groups, ×1.20 with 16, ×1.02
-/// with 120 (a minute).
+/// cluster-robust inference with few clusters): ×6.4 with 3 groups, ×1.51 with 8, ×1.20
+/// with 16, ×1.02 with 120 (a minute).
 pub fn few_groups_factor(groups: usize) -> f64 {
     if groups < 2 {
         return f64::INFINITY;
     }
-    student_t_quantile(COVERAGE_SIGMAS, (groups - 1) as f64) / COVERAGE_SIGMAS
+    student_t_quantile(normal_tail(COVERAGE_SIGMAS), (groups - 1) as f64) / COVERAGE_SIGMAS
 }
 
-/// Student's t quantile with `nu` degrees of freedom at the probability a standard normal
-/// has below `z`: the Cornish–Fisher expansion in 1/ν to its fourth term (within 0.1 % of
-/// the exact quantile at z = 3 from ν = 7 up; the terms' coefficients are Abramowitz and
-/// Stegun 26.7.5).
-fn student_t_quantile(z: f64, nu: f64) -> f64 {
-    let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
-    z + (z3 + z) / (4.0 * nu)
-        + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
-        + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
-        + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
+/// Simpson's rule over `[a, b]` in `n` (even) steps.
+fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
+    let h = (b - a) / n as f64;
+    let inner: f64 = (1..n).map(|i| f(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 }).sum();
+    (f(a) + f(b) + inner) * h / 3.0
+}
+
+/// The probability a standard normal lies beyond `z` (> 0).
+fn normal_tail(z: f64) -> f64 {
+    let phi = |x: f64| (-0.5 * x * x).exp() / std::f64::consts::TAU.sqrt();
+    simpson(phi, z, z + 40.0, 20_000)
+}
+
+/// Student's t quantile with `nu` (≥ 1) degrees of freedom above which `tail` of it lies.
+/// With x = √ν·tan θ its density is ∝ cos^(ν−1) θ over (−π/2, π/2), so the tail beyond θ is
+/// an integral of a smooth function (Simpson's rule), and θ is found by bisection: exact for
+/// any ν (a series in 1/ν is not, for the few groups a short recording makes).
+fn student_t_quantile(tail: f64, nu: f64) -> f64 {
+    let half = std::f64::consts::FRAC_PI_2;
+    let density = |th: f64| th.cos().max(0.0).powf(nu - 1.0);
+    let total = simpson(density, -half, half, 4_000);
+    let beyond = |th: f64| simpson(density, th, half, 2_000) / total;
+    let (mut lo, mut hi) = (0.0, half);
+    for _ in 0..60 {
+        let mid = 0.5 * (lo + hi);
+        if beyond(mid) > tail {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    nu.sqrt() * (0.5 * (lo + hi)).tan()
 }
 
 /// The stretch of the recording, s, whose views form one group for the standard deviations,
 /// given each view's time (s): [`GROUP_SECONDS`], or the longest shorter one (the views'
 /// span over a whole number, down to [`MIN_GROUP_SECONDS`]) that parts the views into
-/// [`MIN_GROUPS`] groups ([`groups_of`]). Views part into few groups when they span little
+/// [`GROUPS_WANTED`] groups ([`groups_of`]). Views part into few groups when they span little
 /// of the recording, or when the grid was seen in bursts (dim discs on part of a cone: the
 /// views of 5 s in 5 half-seconds). Without groups the σ would take every point's error as
 /// independent: on 3 s of a simulated cone that σ left the error of fy beyond 3σ in 5 of 8
@@ -67,11 +95,11 @@ pub fn group_seconds(times: &[f64]) -> f64 {
     if !span.is_finite() {
         return GROUP_SECONDS;
     }
-    let enough = |g: f64| groups_of(times, g, 0.0).1 >= MIN_GROUPS;
+    let enough = |g: f64| groups_of(times, g, 0.0).1 >= GROUPS_WANTED;
     if enough(GROUP_SECONDS) {
         return GROUP_SECONDS;
     }
-    (MIN_GROUPS..)
+    (GROUPS_WANTED..)
         .map(|n| span / n as f64)
         .take_while(|&g| g >= MIN_GROUP_SECONDS)
         .find(|&g| g <= GROUP_SECONDS && enough(g))
@@ -108,7 +136,9 @@ pub fn groups_of(times: &[f64], group_s: f64, lead: f64) -> (Vec<u32>, usize) {
 /// estimate from some sixteen sums, and which placement is arbitrary: on the simulator's
 /// sweep moving the bounds alone moved σ(fx) by up to a quarter (docs/accuracy.md, "Views
 /// seen in bursts"). Averaging the placements' covariances, as overlapping batch means do
-/// (Meketon and Schmeiser 1984), keeps what each says and less of its chance.
+/// (Meketon and Schmeiser 1984), keeps what each says and less of its chance. Where the
+/// views make fewer than [`GROUPS_WANTED`] groups, only the first placement is used: a led
+/// one may cut a burst of views in two.
 pub const GROUP_PLACEMENTS: usize = 4;
 
 #[cfg(test)]
@@ -133,7 +163,7 @@ mod test {
             let g = group_seconds(&times);
             assert!((MIN_GROUP_SECONDS..=GROUP_SECONDS).contains(&g), "{seconds} s: {g}");
             assert!(
-                groups_of(&times, g, 0.0).1 >= MIN_GROUPS,
+                groups_of(&times, g, 0.0).1 >= GROUPS_WANTED,
                 "{seconds} s: {} groups of {g} s",
                 groups_of(&times, g, 0.0).1
             );
@@ -162,41 +192,51 @@ mod test {
         // stretches hold the views in 5 groups, too few for a grouped σ.
         let times: Vec<f64> =
             every_33_ms(0.0, 0.45).chain(every_33_ms(3.15, 3.85)).chain(every_33_ms(4.15, 5.0)).collect();
-        assert!(groups_of(&times, GROUP_SECONDS, 0.0).1 < MIN_GROUPS);
+        assert!(groups_of(&times, GROUP_SECONDS, 0.0).1 < GROUPS_WANTED);
         let g = group_seconds(&times);
         assert!((MIN_GROUP_SECONDS..GROUP_SECONDS).contains(&g), "{g}");
-        assert!(groups_of(&times, g, 0.0).1 >= MIN_GROUPS, "{} groups of {g} s", groups_of(&times, g, 0.0).1);
+        assert!(groups_of(&times, g, 0.0).1 >= GROUPS_WANTED, "{} groups of {g} s", groups_of(&times, g, 0.0).1);
         // The longest such stretch: the next longer candidate is one too few.
         let span = times[times.len() - 1] - times[0];
         let n = (span / g).round() as usize;
-        assert!(groups_of(&times, span / (n - 1) as f64, 0.0).1 < MIN_GROUPS);
+        assert!(groups_of(&times, span / (n - 1) as f64, 0.0).1 < GROUPS_WANTED);
         // Two bursts too short for any stretch to part them into enough groups: the floor.
         let few: Vec<f64> = every_33_ms(0.0, 0.3).chain(every_33_ms(4.0, 4.3)).collect();
         assert_eq!(group_seconds(&few), MIN_GROUP_SECONDS);
     }
 
-    /// Simpson's rule over `[a, b]` in `n` (even) steps.
-    fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
-        let h = (b - a) / n as f64;
-        let inner: f64 = (1..n).map(|i| f(a + i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 }).sum();
-        (f(a) + f(b) + inner) * h / 3.0
+    /// Student's t quantile by the Cornish–Fisher expansion in 1/ν to its fourth term
+    /// (Abramowitz and Stegun 26.7.5), at the probability a standard normal has below `z`:
+    /// an independent reference for many degrees of freedom.
+    fn cornish_fisher(z: f64, nu: f64) -> f64 {
+        let (z3, z5, z7, z9) = (z.powi(3), z.powi(5), z.powi(7), z.powi(9));
+        z + (z3 + z) / (4.0 * nu)
+            + (5.0 * z5 + 16.0 * z3 + 3.0 * z) / (96.0 * nu * nu)
+            + (3.0 * z7 + 19.0 * z5 + 17.0 * z3 - 15.0 * z) / (384.0 * nu.powi(3))
+            + (79.0 * z9 + 776.0 * z7 + 1482.0 * z5 - 1920.0 * z3 - 945.0 * z) / (92160.0 * nu.powi(4))
     }
 
     #[test]
     fn few_groups_widen_sigma_so_that_three_of_them_cover_as_a_normals_do() {
-        // A standard normal beyond 3.
-        let phi = |x: f64| (-0.5 * x * x).exp() / std::f64::consts::TAU.sqrt();
-        let normal_tail = simpson(phi, COVERAGE_SIGMAS, 40.0, 20_000);
+        // A standard normal beyond 3 (Abramowitz and Stegun, table 26.1).
+        let p = normal_tail(COVERAGE_SIGMAS);
+        assert!((p - 1.349_898e-3).abs() < 1e-9, "{p}");
+        // One degree of freedom: a Cauchy, whose quantile is a tangent.
+        let cauchy = (std::f64::consts::PI * (0.5 - p)).tan();
+        assert!((student_t_quantile(p, 1.0) / cauchy - 1.0).abs() < 1e-4, "{}", student_t_quantile(p, 1.0));
+        // Two: F(t) = 1/2 + t / (2 √(t² + 2)).
+        let a = 1.0 - 2.0 * p;
+        let two = a * 2f64.sqrt() / (1.0 - a * a).sqrt();
+        assert!((few_groups_factor(3) * COVERAGE_SIGMAS / two - 1.0).abs() < 1e-4, "×{}", few_groups_factor(3));
+        assert!((few_groups_factor(3) - 6.40).abs() < 0.01, "×{}", few_groups_factor(3));
+        // Many: the series in 1/ν, within its 0.1 %.
         let mut last = f64::INFINITY;
-        for groups in [8, 12, 16, 41, 120] {
-            let nu = (groups - 1) as f64;
-            let q = COVERAGE_SIGMAS * few_groups_factor(groups);
-            // Student's t beyond q, with x = √ν·tan θ (its density ∝ cos^(ν−1) θ in θ).
-            let density = |th: f64| th.cos().powf(nu - 1.0);
-            let half = std::f64::consts::FRAC_PI_2;
-            let tail = simpson(density, (q / nu.sqrt()).atan(), half, 20_000) / simpson(density, -half, half, 40_000);
-            assert!((tail / normal_tail - 1.0).abs() < 0.01, "{groups} groups: tail {tail} against {normal_tail}");
+        for groups in [3, 4, 5, 8, 12, 16, 41, 120] {
             let factor = few_groups_factor(groups);
+            if groups >= 8 {
+                let series = cornish_fisher(COVERAGE_SIGMAS, (groups - 1) as f64) / COVERAGE_SIGMAS;
+                assert!((factor / series - 1.0).abs() < 1e-3, "{groups} groups: ×{factor} against ×{series}");
+            }
             assert!(factor > 1.0 && factor < last, "{groups} groups: ×{factor}");
             last = factor;
         }

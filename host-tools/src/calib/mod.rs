@@ -27,8 +27,8 @@ mod model;
 mod solve;
 
 pub use groups::{
-    few_groups_factor, group_seconds, groups_of, COVERAGE_SIGMAS, GROUP_PLACEMENTS, GROUP_SECONDS, MIN_GROUPS,
-    MIN_GROUP_SECONDS,
+    few_groups_factor, group_seconds, groups_of, COVERAGE_SIGMAS, GROUPS_WANTED, GROUP_PLACEMENTS, GROUP_SECONDS,
+    MIN_GROUPS, MIN_GROUP_SECONDS,
 };
 pub use k3::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 pub use model::{outline_offset, Intrinsics, Pose, PARAMETER_NAMES};
@@ -656,7 +656,11 @@ fn view_groups(opts: &Options, n_views: usize, kept: &[usize]) -> Option<(Vec<Ve
     }
     let times: Vec<f64> = kept.iter().map(|&v| opts.view_times[v]).collect();
     let group_s = group_seconds(&times);
-    let placements = (0..GROUP_PLACEMENTS)
+    // Led placements may cut a burst of views shorter than a stretch in two, which counts
+    // one moment's error twice: where the groups are few, each one matters, and the groups
+    // follow the views alone.
+    let enough = groups_of(&times, group_s, 0.0).1 >= GROUPS_WANTED;
+    let placements = (0..if enough { GROUP_PLACEMENTS } else { 1 })
         .map(|p| {
             let lead = group_s * p as f64 / GROUP_PLACEMENTS as f64;
             let mut groups = vec![u32::MAX; n_views];
@@ -891,15 +895,22 @@ mod test {
         for i in 0..4 {
             assert!(grouped.std_dev[i] >= plain.std_dev[i], "{i}: never below the points' σ");
         }
-        // Views in five bursts of four, too short to part into enough groups: the points'
-        // σ alone.
-        let opts = Options {
-            view_times: (0..20).map(|v| (v / 4) as f64 + 0.01 * (v % 4) as f64).collect(),
+        // Views in five bursts of four, too short to part into more groups: five groups,
+        // their σ widened for so few, by Student's t with four degrees of freedom.
+        let bursts = |n: usize| Options {
+            view_times: (0..20).map(|v| (v / (20 / n)) as f64 + 0.01 * (v % (20 / n)) as f64).collect(),
             ..Options::default()
         };
-        let few = calibrate(&views, [346, 260], &opts).unwrap();
-        assert_eq!((few.sigma_groups, few.sigma_group_s), (None, Some(MIN_GROUP_SECONDS)));
-        assert_eq!(few.std_dev, plain.std_dev);
+        let few = calibrate(&views, [346, 260], &bursts(5)).unwrap();
+        assert_eq!((few.sigma_groups, few.sigma_group_s), (Some(5), Some(MIN_GROUP_SECONDS)));
+        assert_eq!(few.intrinsics, plain.intrinsics);
+        for i in 0..4 {
+            assert!(few.std_dev[i] >= plain.std_dev[i], "{i}: never below the points' σ");
+        }
+        // In two bursts: too few groups for a grouped σ; the points' σ alone.
+        let two = calibrate(&views, [346, 260], &bursts(2)).unwrap();
+        assert_eq!((two.sigma_groups, two.sigma_group_s), (None, Some(MIN_GROUP_SECONDS)));
+        assert_eq!(two.std_dev, plain.std_dev);
     }
 
     #[test]
