@@ -108,9 +108,10 @@ pub fn group_seconds(times: &[f64]) -> f64 {
 
 /// Each view's group (in the order of `times`) and how many groups there are. In time order,
 /// a group is a view and the views after it less than `group_s` seconds later; the next view
-/// starts the next. So no group is split where no view lies: a burst of views shorter than
-/// a stretch never makes two groups of one moment (as fixed cuts of the recording could),
-/// and groups that start `group_s` apart share no windows beyond their neighbours'. The
+/// starts the next. So groups start at views, not at fixed times: a burst of views shorter
+/// than a stretch, more than a stretch after the views before it, is one group (fixed cuts
+/// of the recording could make two groups of one moment), and groups that start `group_s`
+/// apart share no windows beyond their neighbours'. The
 /// first group reaches `lead` seconds (less than `group_s`) back before the first view, so
 /// that it ends that much sooner: where the groups' bounds fall is a choice, and
 /// [`GROUP_PLACEMENTS`] of them are averaged.
