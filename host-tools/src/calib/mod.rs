@@ -659,17 +659,19 @@ fn view_groups(opts: &Options, n_views: usize, kept: &[usize]) -> Option<(Vec<Ve
     // Led placements may cut a burst of views shorter than a stretch in two, which counts
     // one moment's error twice: where the groups are few, each one matters, and the groups
     // follow the views alone.
-    let enough = groups_of(&times, group_s, 0.0).1 >= GROUPS_WANTED;
-    let placements = (0..if enough { GROUP_PLACEMENTS } else { 1 })
-        .map(|p| {
-            let lead = group_s * p as f64 / GROUP_PLACEMENTS as f64;
-            let mut groups = vec![u32::MAX; n_views];
-            for (&v, g) in kept.iter().zip(groups_of(&times, group_s, lead).0) {
-                groups[v] = g;
-            }
-            groups
-        })
-        .collect();
+    let place = |p: usize| {
+        let (of_kept, count) = groups_of(&times, group_s, group_s * p as f64 / GROUP_PLACEMENTS as f64);
+        let mut groups = vec![u32::MAX; n_views];
+        for (&v, g) in kept.iter().zip(of_kept) {
+            groups[v] = g;
+        }
+        (groups, count)
+    };
+    let (first, count) = place(0);
+    let mut placements = vec![first];
+    if count >= GROUPS_WANTED {
+        placements.extend((1..GROUP_PLACEMENTS).map(|p| place(p).0));
+    }
     Some((placements, group_s))
 }
 
