@@ -393,14 +393,36 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         }
     }
     // Views of one stretch of the recording err alike; the σ printed must know it.
-    let grouped = calib::Options {
+    let mut grouped = calib::Options {
         view_times: used_origins.iter().map(|o| o.t_s).collect(),
         shift_directions,
         ..setup.calib.clone()
     };
     let mut calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
+    // On slanted outlines the shift leans across the motion by what the views say (see
+    // `edge_shift`'s note): solved once more to estimate it, and again on the centres it
+    // moves, where it counts in the σ as the shift does.
+    let mut lean_px = 0.0;
+    if let (Some(s), Some(radius)) = (edge_shift.as_mut(), setup.calib.circle_radius) {
+        let across = edge_shift::across_outlines(&used, &grouped.shift_directions, &calibration, radius);
+        let probe = calib::Options { lean_directions: across, ..grouped.clone() };
+        if let Some(l) = calib::calibrate(&used, setup.image_size, &probe).ok().and_then(|c| c.lean) {
+            let lean = edge_shift::shrunk(l.step, l.std);
+            let moved = edge_shift::shifted(&used, &probe.lean_directions, lean);
+            if let Ok(c) = calib::calibrate(&moved, setup.image_size, &probe) {
+                s.lean = Some(edge_shift::Lean { px: l.step, std_px: l.std, used_px: lean });
+                (calibration, used, grouped, lean_px) = (c, moved, probe, lean);
+            }
+        }
+    }
     // What the views cannot tell apart is uncertain: the lag's other model's answer counts.
     if let (Some(s), Some((views, dirs, px))) = (edge_shift.as_mut(), alternative) {
+        // With the same lean (a move of its own, whichever model the shift follows).
+        let views = if lean_px != 0.0 && grouped.lean_directions.len() == views.len() {
+            edge_shift::shifted(&views, &grouped.lean_directions, lean_px)
+        } else {
+            views
+        };
         let opts = calib::Options { shift_directions: dirs, ..grouped.clone() };
         if let Ok(alt) = calib::calibrate(&views, setup.image_size, &opts) {
             let (a, b) = (alt.intrinsics.to_array(), calibration.intrinsics.to_array());

@@ -140,6 +140,27 @@ fn true_centres(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64) -> Option<(
     Some((centre, [cx / (3.0 * area), cy / (3.0 * area)]))
 }
 
+/// How an outline leans against its motion: ε·sin 2(θ − φ), with ε = (a − b)/(a + b) from
+/// the axes of the projected outline of board point `o` at `t` (its second moments), φ the
+/// major axis's direction and θ the unit image direction `u`'s. Zero for a circle, or for an
+/// ellipse moving along either axis: then the events are symmetric about the motion.
+fn outline_slant(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: [f64; 2]) -> Option<f64> {
+    let n = 64;
+    let (_, pts) = true_outline(truth, k, o, t, n)?;
+    let m = pts.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+    let (mut sxx, mut syy, mut sxy) = (0.0, 0.0, 0.0);
+    for p in &pts {
+        let (dx, dy) = (p[0] - m[0], p[1] - m[1]);
+        (sxx, syy, sxy) = (sxx + dx * dx, syy + dy * dy, sxy + dx * dy);
+    }
+    let phi = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let half = 0.5 * (sxx + syy);
+    let disc = (half * half - (sxx * syy - sxy * sxy)).max(0.0).sqrt();
+    let (a, b) = ((half + disc).sqrt(), (half - disc).max(0.0).sqrt());
+    let eps = (a - b) / (a + b).max(1e-12);
+    Some(eps * (2.0 * (u[1].atan2(u[0]) - phi)).sin())
+}
+
 /// Points about a centre, each with its weight.
 type Weighted = Vec<([f64; 2], f64)>;
 
@@ -192,18 +213,8 @@ fn fitted_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u:
 /// weighs it.
 fn conic_outline_centre(truth: &Truth, k: &Intrinsics, o: &[f64; 3], t: f64, u: Option<[f64; 2]>) -> Option<[f64; 2]> {
     let (c0, pts) = weighted_outline(truth, k, o, t, u)?;
-    let mut m = nalgebra::Matrix5::<f64>::zeros();
-    let mut b = nalgebra::Vector5::<f64>::zeros();
-    for ([x, y], w) in pts {
-        let row = nalgebra::Vector5::new(x * x - y * y, x * y, x, y, 1.0);
-        m += w * row * row.transpose();
-        b += w * row * (-(y * y));
-    }
-    let s = m.lu().solve(&b)?;
-    let (a, bxy, d, e) = (s[0], s[1], s[2], s[3]);
-    let c = 1.0 - a;
-    let det = 4.0 * a * c - bxy * bxy;
-    Some([c0[0] + (bxy * e - 2.0 * c * d) / det, c0[1] + (bxy * d - 2.0 * a * e) / det])
+    let c = evcal_host::views::edge_shift::conic_centre(&pts)?;
+    Some([c0[0] + c[0], c0[1] + c[1]])
 }
 
 /// How the detection of an experiment differs from `evcal calibrate`'s.
@@ -422,6 +433,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     // Per point of `delayed`: the unit direction of its circle's motion and its residual.
     let mut motion: Vec<([f64; 2], [f64; 2])> = Vec::new();
     let mut delays = Vec::new();
+    // Per point of `delayed`: how its outline leans against its motion (`outline_slant`).
+    let mut slants: Vec<f64> = Vec::new();
     let mut fitted = Vec::new();
     let (mut conic_u, mut conic_plain) = (Vec::new(), Vec::new());
     let mut radial_bins = [[0.0f64; 4]; 8];
@@ -466,6 +479,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             let (vx, vy) = (later[0] - e[0], later[1] - e[1]);
             let n = vx.hypot(vy).max(1e-12);
             motion.push(([vx / n, vy / n], [m[0] - e[0], m[1] - e[1]]));
+            slants.push(outline_slant(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(0.0));
             let f = fitted_outline_centre(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(e);
             {
                 let (rx, ry) = (e[0] - k.cx, e[1] - k.cy);
@@ -843,6 +857,37 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             }
             show("detected less the across-motion part that follows the direction", &moved, &plain);
         }
+    }
+    {
+        // A slanted outline's events are not symmetric about its motion: wherever they sit
+        // relative to the edge, the fit's centre can move across the motion in proportion to
+        // the slant. Least squares of the residual across on it, and the solve without it.
+        let (mut sf, mut sc, mut sff, mut sfc, mut scc) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for (f, (u, r)) in slants.iter().zip(&motion) {
+            let c = -r[0] * u[1] + r[1] * u[0];
+            (sf, sc, sff, sfc, scc) = (sf + f, sc + c, sff + f * f, sfc + f * c, scc + c * c);
+        }
+        let n = slants.len().max(3) as f64;
+        let (vf, vc, cov) = (sff / n - (sf / n).powi(2), scc / n - (sc / n).powi(2), sfc / n - sf * sc / (n * n));
+        let (slope, corr) = (cov / vf.max(1e-18), cov / (vf * vc).sqrt().max(1e-18));
+        println!(
+            "    across residual = {:+.4} px · ε sin 2(θ − φ) (the outline's slant to the motion; RMS {:.4}; correlation {:+.3}, t {:+.1})",
+            slope,
+            (sff / n).sqrt(),
+            corr,
+            corr * (n - 2.0).sqrt() / (1.0 - corr * corr).max(1e-12).sqrt()
+        );
+        let mut moved = detected.clone();
+        let mut j = 0;
+        for v in moved.iter_mut() {
+            for p in v.image.iter_mut() {
+                let (u, _) = motion[j];
+                let g = slope * slants[j];
+                j += 1;
+                *p = [p[0] + g * u[1], p[1] - g * u[0]];
+            }
+        }
+        show("detected less the across part that follows the outline's slant", &moved, &plain);
     }
     show("truth at the delay plus the residual along the motion only", &along, &plain);
     show("truth at the delay plus the residual across the motion only", &across, &plain);

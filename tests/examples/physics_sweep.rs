@@ -13,6 +13,9 @@
 //! case's bias from one run's scatter.
 //! `--lag` prints, under each case's row, how far its centres lag their circles along the
 //! motion at each image speed, against the simulator's truth (`sweep::lag_by_speed`).
+//! `--decompose` solves each case again on the truth plus only a part of its centres' error
+//! (along the motion, across it, or along it as a line in the speed per window;
+//! `sweep::decompose`), to tell which part carries a bias.
 //!
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
 //! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
@@ -26,6 +29,7 @@ fn main() {
     let cache = args::take_cache(&mut argv);
     let list_only = argv.iter().position(|a| a == "--cases").map(|i| argv.remove(i)).is_some();
     let lag = argv.iter().position(|a| a == "--lag").map(|i| argv.remove(i)).is_some();
+    let decompose = argv.iter().position(|a| a == "--decompose").map(|i| argv.remove(i)).is_some();
     let mut only = Vec::new();
     while let Some(i) = argv.iter().position(|a| a == "--only") {
         let Some(text) = argv.get(i + 1).cloned() else {
@@ -121,6 +125,17 @@ fn main() {
             if lag {
                 for (lo, hi, n, mean) in sweep::lag_by_speed(&rec) {
                     println!("    lag along the motion at {lo:.0}-{hi:.0} px/s: {mean:+.3} px ({n} centres)");
+                }
+            }
+            if decompose {
+                for (what, o) in sweep::decompose(&c, sensor, &rec) {
+                    match o {
+                        Ok(o) => println!(
+                            "    {what}: fx {:+.3} % (σ {:.3}), fy {:+.3} %, cx {:+.2}, cy {:+.2} px, {} views",
+                            o.errors[0], o.sigmas[0], o.errors[1], o.errors[2], o.errors[3], o.views
+                        ),
+                        Err(e) => println!("    {what}: {e}"),
+                    }
                 }
             }
         }

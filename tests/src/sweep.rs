@@ -286,25 +286,9 @@ pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, Stri
 pub fn lag_by_speed(r: &Recorded) -> Vec<(f64, f64, usize, f64)> {
     const BIN: f64 = 50.0;
     let mut bins = vec![(0usize, 0.0f64); 16];
-    for k in 1..r.windows.len().saturating_sub(1) {
-        let dt = (r.windows[k + 1].t_ref_us as f64 - r.windows[k - 1].t_ref_us as f64) * 1e-6;
-        if dt <= 0.0 {
-            continue;
-        }
-        for c in &r.windows[k].centers {
-            let p = [f64::from(c.u), f64::from(c.v)];
-            let Some(i) = r.nearest(k, p) else { continue };
-            let (t, a, b) = (&r.truth[k][i], &r.truth[k - 1][i], &r.truth[k + 1][i]);
-            let d = [p[0] - t.centre[0], p[1] - t.centre[1]];
-            // Beyond 2 px the nearest circle is not this centre's (or the fit is a stray).
-            if !t.in_view || d[0].hypot(d[1]) > 2.0 {
-                continue;
-            }
-            let v = [(b.centre[0] - a.centre[0]) / dt, (b.centre[1] - a.centre[1]) / dt];
+    for k in 0..r.windows.len() {
+        for (_, _, d, v) in paired(r, k) {
             let speed = v[0].hypot(v[1]);
-            if speed <= 0.0 {
-                continue;
-            }
             let bin = &mut bins[((speed / BIN) as usize).min(15)];
             bin.0 += 1;
             bin.1 += (d[0] * v[0] + d[1] * v[1]) / speed;
@@ -314,5 +298,90 @@ pub fn lag_by_speed(r: &Recorded) -> Vec<(f64, f64, usize, f64)> {
         .enumerate()
         .filter(|(_, b)| b.0 >= 20)
         .map(|(i, b)| (BIN * i as f64, BIN * (i + 1) as f64, b.0, b.1 / b.0 as f64))
+        .collect()
+}
+
+/// A centre paired with its circle: `(centre index in its window, the truth, the error
+/// (px), the circle's image velocity (px/s))`.
+type Pair = (usize, [f64; 2], [f64; 2], [f64; 2]);
+
+/// The centres of window `k` of `r` paired with their circles: each centre within 2 px of a
+/// circle wholly in view that moves, its velocity from the windows on either side (none
+/// for the first and last windows).
+fn paired(r: &Recorded, k: usize) -> Vec<Pair> {
+    let (Some(before), Some(after)) = (k.checked_sub(1).and_then(|j| r.windows.get(j)), r.windows.get(k + 1)) else {
+        return Vec::new();
+    };
+    let dt = (after.t_ref_us as f64 - before.t_ref_us as f64) * 1e-6;
+    if dt <= 0.0 {
+        return Vec::new();
+    }
+    let mut out = Vec::new();
+    for (ci, c) in r.windows[k].centers.iter().enumerate() {
+        let p = [f64::from(c.u), f64::from(c.v)];
+        let Some(i) = r.nearest(k, p) else { continue };
+        let (t, a, b) = (&r.truth[k][i], &r.truth[k - 1][i], &r.truth[k + 1][i]);
+        let d = [p[0] - t.centre[0], p[1] - t.centre[1]];
+        // Beyond 2 px the nearest circle is not this centre's (or the fit is a stray).
+        if !t.in_view || d[0].hypot(d[1]) > 2.0 {
+            continue;
+        }
+        let v = [(b.centre[0] - a.centre[0]) / dt, (b.centre[1] - a.centre[1]) / dt];
+        if v[0].hypot(v[1]) > 1e-9 {
+            out.push((ci, t.centre, d, v));
+        }
+    }
+    out
+}
+
+/// Which part of the centres' error carries a case's bias: `run_on` again with every centre
+/// that [`lag_by_speed`] pairs with its circle replaced by the truth plus a part of its error.
+/// Rows: the truth alone; the truth plus the error along the circle's motion only; plus the
+/// error across it only; and, per window, the error along the motion replaced by a straight
+/// line in the image speed fitted to that window's centres (what a lag that differs between a
+/// view's circles only by their speeds can be, to first order). Each row is
+/// `(what, outcome)`. `r`: what [`record`] gave.
+pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, Result<Outcome, String>)> {
+    const PARTS: [&str; 4] = [
+        "truth alone",
+        "truth plus the error along the motion",
+        "truth plus the error across the motion",
+        "along the motion: each window's line in the speed",
+    ];
+    PARTS
+        .iter()
+        .enumerate()
+        .map(|(part, &what)| {
+            let mut moved = r.clone();
+            for k in 0..r.windows.len() {
+                // (centre index, truth, unit motion, speed, error along, error across)
+                let paired: Vec<_> = paired(r, k)
+                    .into_iter()
+                    .map(|(ci, t, d, v)| {
+                        let speed = v[0].hypot(v[1]);
+                        let u = [v[0] / speed, v[1] / speed];
+                        (ci, t, u, speed, d[0] * u[0] + d[1] * u[1], -d[0] * u[1] + d[1] * u[0])
+                    })
+                    .collect();
+                let n = (paired.len() as f64).max(1.0);
+                let ms = paired.iter().map(|x| x.3).sum::<f64>() / n;
+                let ma = paired.iter().map(|x| x.4).sum::<f64>() / n;
+                let sss: f64 = paired.iter().map(|x| (x.3 - ms).powi(2)).sum();
+                let ssa: f64 = paired.iter().map(|x| (x.3 - ms) * (x.4 - ma)).sum();
+                let slope = if sss > 1e-9 { ssa / sss } else { 0.0 };
+                for &(ci, t, u, speed, along, across) in &paired {
+                    let (a, c) = match part {
+                        0 => (0.0, 0.0),
+                        1 => (along, 0.0),
+                        2 => (0.0, across),
+                        _ => (ma + slope * (speed - ms), across),
+                    };
+                    let c_ = &mut moved.windows[k].centers[ci];
+                    c_.u = (t[0] + a * u[0] - c * u[1]) as f32;
+                    c_.v = (t[1] + a * u[1] + c * u[0]) as f32;
+                }
+            }
+            (what, run_on(case, sensor, &moved))
+        })
         .collect()
 }

@@ -91,6 +91,13 @@ pub struct Options {
     /// the standard deviations, its uncertainty carried into the intrinsics'
     /// ([`Calibration::shift_std_px`]). Empty, or not one entry per view: no shift.
     pub shift_directions: Vec<Vec<[f64; 2]>>,
+    /// Per view, per point, as `shift_directions`: the directions of a second move of the
+    /// detected centres, by one factor shared by all views (the edge shift's lean across the
+    /// motion on slanted outlines; see [`crate::views::edge_shift`]). The solve reports how
+    /// far along them the views would move the points ([`Calibration::lean`]), and the
+    /// factor counts as one more parameter in the standard deviations. Empty, or not one
+    /// entry per view: none.
+    pub lean_directions: Vec<Vec<[f64; 2]>>,
     /// Radius of the target's circles, metres: the solve then compares each detected centre
     /// with the centre of its circle's projected outline ([`outline_offset`]), which a circle
     /// fit measures, instead of the projection of the circle's centre. `None`: the latter, as
@@ -119,6 +126,7 @@ impl Default for Options {
             circle_radius: None,
             view_times: Vec::new(),
             shift_directions: Vec::new(),
+            lean_directions: Vec::new(),
         }
     }
 }
@@ -197,6 +205,9 @@ pub struct Calibration {
     /// this solve ([`Options::shift_directions`]; the larger of the independent-error and
     /// the grouped figure, like `std_dev`); `None` without one.
     pub shift_std_px: Option<f64>,
+    /// With [`Options::lean_directions`]: how far along them the views would move the
+    /// points from where they were given, and that factor's σ as a parameter of this solve.
+    pub lean: Option<MoveEstimate>,
     /// How many groups of views ([`Options::view_times`]) the grouped σ came from, widened
     /// for their number by [`few_groups_factor`]; `None` when `std_dev` is the
     /// independent-error figure alone (no times, or too few groups for a grouped σ).
@@ -233,6 +244,18 @@ impl Calibration {
             })
             .collect()
     }
+}
+
+/// A move of the points shared by all views, as the solve estimates it
+/// ([`Calibration::lean`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MoveEstimate {
+    /// The factor the views ask for: one Gauss–Newton step from the points as given, with
+    /// the poses, the free intrinsics and any shift free as well.
+    pub step: f64,
+    /// One standard deviation of it (the larger of the independent-error and the grouped
+    /// figure, like [`Calibration::std_dev`]).
+    pub std: f64,
 }
 
 /// Why a calibration could not be made.
@@ -576,33 +599,38 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         .zip(&weights)
         .map(|(&v, w)| solve::ViewData { object: &views[v].object, image: &targets[v], weight: w })
         .collect();
-    // A shift estimated from these views is one more parameter: the intrinsics' covariance
-    // is the block of the joint one, which carries the shift's own uncertainty into them.
-    let shift = (opts.shift_directions.len() == views.len())
-        .then(|| {
-            let dirs: Vec<&[[f64; 2]]> = kept.iter().map(|&v| &opts.shift_directions[v][..]).collect();
-            solve::shift_terms(&data, &k, &poses, &free, &dirs)
-        })
-        .flatten();
+    // A shift (and its lean) estimated from these views is one more parameter each: the
+    // intrinsics' covariance is the block of the joint one, which carries their own
+    // uncertainty into them.
+    fn per_kept<'a>(d: &'a [Vec<[f64; 2]>], n_views: usize, kept: &[usize]) -> Option<Vec<&'a [[f64; 2]]>> {
+        (d.len() == n_views).then(|| kept.iter().map(|&v| &d[v][..]).collect())
+    }
+    let (shift_dirs, lean_dirs) =
+        (per_kept(&opts.shift_directions, views.len(), &kept), per_kept(&opts.lean_directions, views.len(), &kept));
+    let has_shift = shift_dirs.is_some();
+    let move_dirs: Vec<Vec<&[[f64; 2]]>> = shift_dirs.into_iter().chain(lean_dirs).collect();
+    let moves = (!move_dirs.is_empty()).then(|| solve::move_terms(&data, &k, &poses, &free, &move_dirs)).flatten();
     let n_free = sol.free.len();
-    let hessian = match &shift {
-        Some(t) => {
-            let mut h = nalgebra::DMatrix::<f64>::zeros(n_free + 1, n_free + 1);
-            h.view_mut((0, 0), (n_free, n_free)).copy_from(&sol.reduced);
+    let n_moves = moves.as_ref().map_or(0, |t| t.scores.len());
+    let mut hessian = nalgebra::DMatrix::<f64>::zeros(n_free + n_moves, n_free + n_moves);
+    hessian.view_mut((0, 0), (n_free, n_free)).copy_from(&sol.reduced);
+    if let Some(t) = &moves {
+        for a in 0..n_moves {
             for c in 0..n_free {
-                h[(c, n_free)] = t.cross[c];
-                h[(n_free, c)] = t.cross[c];
+                hessian[(c, n_free + a)] = t.cross[a][c];
+                hessian[(n_free + a, c)] = t.cross[a][c];
             }
-            h[(n_free, n_free)] = t.curvature;
-            h
+            for b in 0..n_moves {
+                hessian[(n_free + a, n_free + b)] = t.curvature[(a, b)];
+            }
         }
-        None => sol.reduced.clone(),
-    };
+    }
+    let mut lean = None;
     if let Some(inv) = hessian.try_inverse() {
-        let shift_scores = shift.as_ref().map(|t| &t.scores[..]);
+        let move_scores: Vec<&[f64]> = moves.as_ref().map_or(Vec::new(), |t| t.scores.iter().map(|s| &s[..]).collect());
         let grouped = view_groups(opts, views.len(), &kept).and_then(|(groups, group_s)| {
             sigma_group_s = Some(group_s);
-            grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &groups, shift_scores)
+            grouped_covariance(&data, &kept, &k, &poses, &free, &inv, &groups, &move_scores)
         });
         sigma_groups = grouped.as_ref().map(|g| g.1);
         let grouped = grouped.map(|g| g.0);
@@ -615,8 +643,16 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         for (c, &i) in sol.free.iter().enumerate() {
             (std_dev_points[i], std_dev[i]) = sd(c);
         }
-        if shift.is_some() {
+        if has_shift && n_moves > 0 {
             shift_std_px = Some(sd(n_free).1);
+        }
+        if let Some(t) = moves.as_ref().filter(|_| n_moves == usize::from(has_shift) + 1) {
+            // The intrinsics and poses sit at their optimum; the moves' scores are what is
+            // left of the gradient.
+            let l = n_free + n_moves - 1;
+            let step = -(0..n_moves).map(|a| inv[(l, n_free + a)] * t.scores[a].iter().sum::<f64>()).sum::<f64>();
+            let std = sd(l).1;
+            lean = (step.is_finite() && std.is_finite()).then_some(MoveEstimate { step, std });
         }
     }
     if let Some(a) = free.aspect {
@@ -641,6 +677,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         converged: sol.converged,
         circle_radius_m: opts.circle_radius,
         shift_std_px,
+        lean,
         sigma_groups,
         sigma_group_s,
     })
@@ -692,14 +729,14 @@ fn grouped_covariance(
     free: &solve::Free,
     inv: &nalgebra::DMatrix<f64>,
     placements: &[Vec<u32>],
-    shift_scores: Option<&[f64]>,
+    move_scores: &[&[f64]],
 ) -> Option<(nalgebra::DMatrix<f64>, usize)> {
     if placements.is_empty() {
         return None;
     }
     let scores = solve::view_scores(data, k, poses, free)?;
     let n = inv.nrows();
-    let n_intrinsics = n - usize::from(shift_scores.is_some());
+    let n_intrinsics = n - move_scores.len();
     let mut meat = nalgebra::DMatrix::<f64>::zeros(n, n);
     let (mut used, mut fewest) = (0usize, usize::MAX);
     for groups in placements {
@@ -710,8 +747,8 @@ fn grouped_covariance(
             for c in 0..n_intrinsics {
                 sum[c] += s[c];
             }
-            if let Some(t) = shift_scores {
-                sum[n_intrinsics] += *t.get(j)?;
+            for (a, t) in move_scores.iter().enumerate() {
+                sum[n_intrinsics + a] += *t.get(j)?;
             }
         }
         let count = sums.len();
@@ -880,6 +917,44 @@ mod test {
                 let z = (free.intrinsics.to_array()[i] - truth) / free.std_dev[i];
                 assert!(z.abs() < 4.0, "seed {seed}: {} off by {z:.1} σ", PARAMETER_NAMES[i]);
             }
+        }
+    }
+
+    #[test]
+    fn a_lean_the_points_were_moved_by_is_estimated_back_and_counted_in_the_sigma() {
+        let t = truth();
+        let views = synthetic_views(&t, 40, 0.05, 11);
+        // Directions that no pose or intrinsic change can mimic.
+        let dirs: Vec<Vec<[f64; 2]>> = views
+            .iter()
+            .enumerate()
+            .map(|(v, view)| {
+                (0..view.image.len())
+                    .map(|i| {
+                        let a = 0.7 * v as f64 + 2.3 * i as f64;
+                        [0.2 * a.cos(), 0.2 * a.sin()]
+                    })
+                    .collect()
+            })
+            .collect();
+        let moved: Vec<View> = views
+            .iter()
+            .zip(&dirs)
+            .map(|(v, d)| View {
+                object: v.object.clone(),
+                image: v.image.iter().zip(d).map(|(p, d)| [p[0] + 0.8 * d[0], p[1] + 0.8 * d[1]]).collect(),
+            })
+            .collect();
+        let plain = calibrate(&moved, [346, 260], &Options::default()).unwrap();
+        assert!(plain.lean.is_none());
+        let opts = Options { lean_directions: dirs, ..Options::default() };
+        let cal = calibrate(&moved, [346, 260], &opts).unwrap();
+        let l = cal.lean.expect("a lean estimate");
+        // The views ask to move the points back by what moved them.
+        assert!((l.step + 0.8).abs() < 3.0 * l.std && l.std < 0.1, "{l:?}");
+        assert_eq!(plain.intrinsics, cal.intrinsics, "the σ changes, not the solution");
+        for i in 0..4 {
+            assert!(cal.std_dev[i] >= plain.std_dev[i] * (1.0 - 1e-9), "{i}: {cal:?} vs {plain:?}");
         }
     }
 

@@ -4,7 +4,7 @@
 //! step whatever the number of views.
 
 use super::model::{project, Intrinsics, Pose};
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{DMatrix, SMatrix, SVector};
 
 type M6 = SMatrix<f64, 6, 6>;
 type V6 = SVector<f64, 6>;
@@ -256,59 +256,76 @@ pub(crate) fn solve(
     Some(Solution { intrinsics: k, poses, cost: nm.cost, reduced, free: idx, iterations, converged })
 }
 
-/// A shift of every detected point along a direction of its own, by one amount shared by
-/// all views, that was estimated from these same views (see `crate::views::edge_shift`): its terms in
-/// the normal equations, each pose profiled out. With them the shift counts as one more
-/// parameter of the solve when its uncertainty is carried into the intrinsics'.
-pub(crate) struct ShiftTerms {
-    /// Per view: the shift's score, `Σ w r·∂r/∂δ − bᵀ V⁻¹ gv` (`b` its cross term with the
-    /// view's pose).
-    pub scores: Vec<f64>,
-    /// Its cross term with the free intrinsics (the leading `n` entries), `Σ (Σ w Jθᵀ ∂r/∂δ
-    /// − W V⁻¹ b)`.
-    pub cross: SVector<f64, 9>,
-    /// Its own curvature, `Σ (Σ w ‖∂r/∂δ‖² − bᵀ V⁻¹ b)`.
-    pub curvature: f64,
+/// Moves of every detected point along directions of its own, each by one amount shared
+/// by all views and estimated from these same views (the edge shift and its lean across
+/// the motion, see `crate::views::edge_shift`): their terms in the normal equations, each
+/// pose profiled out. With them each move counts as one more parameter of the solve when
+/// its uncertainty is carried into the intrinsics'.
+pub(crate) struct MoveTerms {
+    /// Per move, per view: the move's score, `Σ w r·∂r/∂δ − bᵀ V⁻¹ gv` (`b` its cross term
+    /// with the view's pose).
+    pub scores: Vec<Vec<f64>>,
+    /// Per move: its cross term with the free intrinsics (the leading `n` entries),
+    /// `Σ (Σ w Jθᵀ ∂r/∂δ − W V⁻¹ b)`.
+    pub cross: Vec<SVector<f64, 9>>,
+    /// The moves' curvature, `Σ (Σ w ∂r/∂δₐ·∂r/∂δᵦ − bₐᵀ V⁻¹ bᵦ)`.
+    pub curvature: DMatrix<f64>,
 }
 
-/// [`ShiftTerms`] of the views' points moved by `δ · dirs[view][point]` (a residual is
-/// model minus detected, so `∂r/∂δ = −dir`). `None` when a pose block is singular or a
-/// point cannot be projected.
-pub(crate) fn shift_terms(
+/// [`MoveTerms`] of the views' points moved by `δₐ · moves[a][view][point]` for each move
+/// `a` (a residual is model minus detected, so `∂r/∂δ = −dir`). `None` when a pose block is
+/// singular or a point cannot be projected.
+pub(crate) fn move_terms(
     views: &[ViewData],
     k: &Intrinsics,
     poses: &[Pose],
     free: &Free,
-    dirs: &[&[[f64; 2]]],
-) -> Option<ShiftTerms> {
+    moves: &[Vec<&[[f64; 2]]>],
+) -> Option<MoveTerms> {
     let (idx, n) = free.indices();
     let idx = &idx[..n];
-    let mut out = ShiftTerms { scores: Vec::with_capacity(views.len()), cross: SVector::zeros(), curvature: 0.0 };
-    for ((view, pose), dir) in views.iter().zip(poses).zip(dirs) {
-        let (mut v, mut gv, mut b) = (M6::zeros(), V6::zeros(), V6::zeros());
-        let mut w = SMatrix::<f64, 9, 6>::zeros();
-        let (mut score, mut cross, mut curv) = (0.0, SVector::<f64, 9>::zeros(), 0.0);
-        for (((o, m), &wt), d) in view.object.iter().zip(view.image).zip(view.weight).zip(dir.iter()) {
+    let m = moves.len();
+    let mut out = MoveTerms {
+        scores: vec![Vec::with_capacity(views.len()); m],
+        cross: vec![SVector::zeros(); m],
+        curvature: DMatrix::zeros(m, m),
+    };
+    for (j, (view, pose)) in views.iter().zip(poses).enumerate() {
+        let (mut v, mut gv, mut w) = (M6::zeros(), V6::zeros(), SMatrix::<f64, 9, 6>::zeros());
+        let mut b = vec![V6::zeros(); m];
+        let mut score = vec![0.0; m];
+        let mut cross = vec![SVector::<f64, 9>::zeros(); m];
+        let mut curv = DMatrix::<f64>::zeros(m, m);
+        for (i, ((o, mo), &wt)) in view.object.iter().zip(view.image).zip(view.weight).enumerate() {
             let p = project(k, pose, o)?;
-            for (r, &mr) in m.iter().enumerate() {
+            for (r, &mr) in mo.iter().enumerate() {
                 let res = p.pixel[r] - mr;
-                let dr = -d[r];
                 let jt = free_row(&p.d_intrinsics[r], free, idx);
                 let jp = V6::from_row_slice(&p.d_pose[r]);
                 v += wt * jp * jp.transpose();
                 w += wt * jt * jp.transpose();
                 gv += wt * res * jp;
-                b += wt * dr * jp;
-                score += wt * res * dr;
-                cross += wt * dr * jt;
-                curv += wt * dr * dr;
+                let dr: Vec<f64> =
+                    moves.iter().map(|d| d.get(j).and_then(|d| d.get(i)).map_or(0.0, |d| -d[r])).collect();
+                for a in 0..m {
+                    b[a] += wt * dr[a] * jp;
+                    score[a] += wt * res * dr[a];
+                    cross[a] += wt * dr[a] * jt;
+                    for c in 0..m {
+                        curv[(a, c)] += wt * dr[a] * dr[c];
+                    }
+                }
             }
         }
         let vi = v.try_inverse()?;
-        let vib = vi * b;
-        out.scores.push(score - vib.dot(&gv));
-        out.cross += cross - w * vib;
-        out.curvature += curv - b.dot(&vib);
+        let vib: Vec<V6> = b.iter().map(|b| vi * b).collect();
+        for a in 0..m {
+            out.scores[a].push(score[a] - vib[a].dot(&gv));
+            out.cross[a] += cross[a] - w * vib[a];
+            for c in 0..m {
+                out.curvature[(a, c)] += curv[(a, c)] - b[a].dot(&vib[c]);
+            }
+        }
     }
     Some(out)
 }

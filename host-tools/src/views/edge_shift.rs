@@ -20,9 +20,21 @@
 //! direction of motion comes from where the same board point was in the neighbouring
 //! windows, and [`estimate`] finds the `δ` that lets one camera explain all views best. The
 //! final solve then runs on centres moved forward by `δ`.
+//!
+//! "Forward" is the motion's direction only for a circle. A circle seen at a slant images
+//! as an ellipse, and where its axes are not the motion's the events on either side of the
+//! motion are not alike: events a fixed depth into the edge (along the outline's normals)
+//! move the core's ellipse fit across the motion as well, in proportion to the outline's
+//! slant, ε·sin 2(θ − φ) (ε = (a − b)/(a + b), φ the major axis, θ the motion). A lag in
+//! proportion to the speed moves the whole outline alike and nothing across. A slow
+//! pixel's events lie between and beyond the two, so the move across, the *lean*, is
+//! measured in its own right: in px of a shift at a fixed depth ([`across_outlines`] gives
+//! its directions), which the solve estimates from the views (`calib::Calibration::lean`).
+//! Events at a fixed depth lean by the shift itself, a pure delay by nothing.
 
-use crate::calib::{self, board_key, View};
+use crate::calib::{self, board_key, Intrinsics, Pose, View};
 use crate::views::ViewOrigin;
+use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Neighbouring windows further apart than this do not give a direction of motion: a hand
@@ -49,6 +61,35 @@ pub struct EdgeShift {
     /// The other model of the same lag, and what choosing it would change.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub by_thickness: Option<ByThickness>,
+    /// How far the centres were also moved across their motion on slanted outlines.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lean: Option<Lean>,
+}
+
+/// The edge shift's move across the motion on slanted outlines (see the module's note), in
+/// px of a shift at a fixed depth into the edge.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Lean {
+    /// The lean the views ask for, px.
+    pub px: f64,
+    /// One standard deviation of it, px.
+    pub std_px: f64,
+    /// The lean the centres were moved by, px: `px` shrunk towards 0 ([`shrunk`]), so that
+    /// a lean the views leave loose moves them little.
+    pub used_px: f64,
+}
+
+/// `estimate` shrunk towards zero by `estimate² / (estimate² + std²)`: the factor that
+/// minimises the expected squared error when the true value is about as large as the
+/// estimate (Wiener's), so that a factor the views fix well is kept and one they leave
+/// loose moves nothing much. Zero for a non-finite input.
+pub fn shrunk(estimate: f64, std: f64) -> f64 {
+    let (e2, s2) = (estimate * estimate, std * std);
+    let total = e2 + s2;
+    if total.is_nan() || total <= 0.0 || total.is_infinite() {
+        return 0.0;
+    }
+    estimate * e2 / (e2 + s2)
 }
 
 /// The shift taken in proportion to how thick each circle's edge looked, instead of one
@@ -142,6 +183,130 @@ pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> 
         .collect()
 }
 
+/// Corners of the projected outline on which [`outline_response`] fits its conics.
+const RESPONSE_CORNERS: usize = 64;
+
+/// How far each outline corner is moved along its normal to measure the response, px: small
+/// against any circle the core fits (radius ≥ 3 px), so the response is the fit's linear one.
+const RESPONSE_PROBE_PX: f64 = 0.01;
+
+/// The centre of the conic `A x² + B xy + (1 − A) y² + D x + E y + F = 0` that weighted
+/// algebraic least squares fits to `pts` (points, each with its weight): the core's ellipse
+/// step, in `f64`, for models of what it finds. `None` for no ellipse.
+pub fn conic_centre(pts: &[([f64; 2], f64)]) -> Option<[f64; 2]> {
+    let mut m = nalgebra::Matrix5::<f64>::zeros();
+    let mut b = nalgebra::Vector5::<f64>::zeros();
+    for &([x, y], w) in pts {
+        let row = nalgebra::Vector5::new(x * x - y * y, x * y, x, y, 1.0);
+        m += w * row * row.transpose();
+        b += w * row * (-(y * y));
+    }
+    let s = m.lu().solve(&b)?;
+    let (a, bxy, d, e) = (s[0], s[1], s[2], s[3]);
+    let c = 1.0 - a;
+    let det = 4.0 * a * c - bxy * bxy;
+    (det > 0.0).then(|| [(bxy * e - 2.0 * c * d) / det, (bxy * d - 2.0 * a * e) / det])
+}
+
+/// How the core's ellipse fit moves the centre of an outline drawn by `corners` (a closed
+/// polygon, in order) when its events sit 1 px into the edge along the normals while it
+/// moves along unit image direction `u`: the front arc's inward, the back arc's outward.
+/// Each corner weighs its arc length times |u · normal|, as the events an edge leaves do.
+/// `None` for a degenerate outline.
+fn response_of_corners(corners: &[[f64; 2]], u: [f64; 2]) -> Option<[f64; 2]> {
+    let n = corners.len();
+    let mid = corners.iter().fold([0.0, 0.0], |a, p| [a[0] + p[0] / n as f64, a[1] + p[1] / n as f64]);
+    let mut plain = Vec::with_capacity(n);
+    let mut moved = Vec::with_capacity(n);
+    for j in 0..n {
+        let (p, q) = (corners[(j + n - 1) % n], corners[(j + 1) % n]);
+        let (tx, ty) = (q[0] - p[0], q[1] - p[1]);
+        let len = tx.hypot(ty);
+        if len.is_nan() || len <= 1e-12 {
+            return None;
+        }
+        let x = [corners[j][0] - mid[0], corners[j][1] - mid[1]];
+        let mut normal = [ty / len, -tx / len];
+        if normal[0] * x[0] + normal[1] * x[1] < 0.0 {
+            normal = [-normal[0], -normal[1]];
+        }
+        let facing = normal[0] * u[0] + normal[1] * u[1];
+        let w = 0.5 * len * facing.abs();
+        let into = if facing > 0.0 { -RESPONSE_PROBE_PX } else { RESPONSE_PROBE_PX };
+        plain.push((x, w));
+        moved.push(([x[0] + into * normal[0], x[1] + into * normal[1]], w));
+    }
+    let (a, b) = (conic_centre(&plain)?, conic_centre(&moved)?);
+    let r = [(b[0] - a[0]) / RESPONSE_PROBE_PX, (b[1] - a[1]) / RESPONSE_PROBE_PX];
+    r.iter().all(|v| v.is_finite()).then_some(r)
+}
+
+/// The same response for a circle, along its motion (negative: the centre falls behind by
+/// about 1.15 times the depth): the unit of [`outline_response`].
+fn circle_response() -> f64 {
+    static R: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    *R.get_or_init(|| {
+        let corners: Vec<[f64; 2]> = (0..RESPONSE_CORNERS)
+            .map(|j| {
+                let a = std::f64::consts::TAU * j as f64 / RESPONSE_CORNERS as f64;
+                [10.0 * a.cos(), 10.0 * a.sin()]
+            })
+            .collect();
+        response_of_corners(&corners, [1.0, 0.0]).map_or(-1.0, |r| r[0])
+    })
+}
+
+/// The forward move of the fitted centre, in units of a circle's (so a circle's is `u`),
+/// of the circle of `radius` (metres) about board point `centre` seen through `pose` and
+/// `k`, moving along unit image direction `u`. `None` when part of the outline is behind the
+/// camera.
+fn outline_response(k: &Intrinsics, pose: &Pose, centre: &[f64; 3], radius: f64, u: [f64; 2]) -> Option<[f64; 2]> {
+    let corners = (0..RESPONSE_CORNERS)
+        .map(|j| {
+            let a = std::f64::consts::TAU * j as f64 / RESPONSE_CORNERS as f64;
+            let o = Vector3::new(centre[0] + radius * a.cos(), centre[1] + radius * a.sin(), centre[2]);
+            k.project(&(pose.rotation * o + pose.translation))
+        })
+        .collect::<Option<Vec<_>>>()?;
+    let r = response_of_corners(&corners, u)?;
+    let c = circle_response();
+    Some([r[0] / c, r[1] / c])
+}
+
+/// Per view and point of `views`, the move across the motion that a shift of 1 px at a
+/// fixed depth into the edge (`dirs` its directions, as [`directions`] gives them) makes of
+/// a centre, for outlines where `cal` puts them (circles of `radius`, metres): the
+/// directions of the edge shift's lean (see the module's note). Zero for a circle, a point
+/// without a direction, and one `cal` did not solve (a view set aside, an outline behind
+/// the camera).
+pub fn across_outlines(
+    views: &[View],
+    dirs: &[Vec<[f64; 2]>],
+    cal: &calib::Calibration,
+    radius: f64,
+) -> Vec<Vec<[f64; 2]>> {
+    let mut out: Vec<Vec<[f64; 2]>> = dirs.iter().map(|d| vec![[0.0; 2]; d.len()]).collect();
+    for r in &cal.views {
+        let (Some(v), Some(d), Some(o)) = (views.get(r.view), dirs.get(r.view), out.get_mut(r.view)) else {
+            continue;
+        };
+        let pose =
+            Pose { rotation: Rotation3::from_scaled_axis(Vector3::from(r.rvec)), translation: Vector3::from(r.tvec) };
+        for ((b, d), o) in v.object.iter().zip(d).zip(o.iter_mut()) {
+            let len = d[0].hypot(d[1]);
+            if len.is_nan() || len <= 1e-12 {
+                continue;
+            }
+            let u = [d[0] / len, d[1] / len];
+            if let Some(m) = outline_response(&cal.intrinsics, &pose, b, radius, u) {
+                let across = (-m[0] * u[1] + m[1] * u[0]) * len;
+                *o = [-across * u[1], across * u[0]];
+            }
+        }
+    }
+    out
+}
+
 /// `views` with every point moved `shift` px along its direction.
 pub fn shifted(views: &[View], dirs: &[Vec<[f64; 2]>], shift: f64) -> Vec<View> {
     views
@@ -206,7 +371,7 @@ pub fn estimate(
     }
     // Residual variance per coordinate; the cost is a sum of squares, so var = 2σ²/curvature.
     let sigma2 = f0 / (2.0 * total as f64).max(1.0);
-    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points, by_thickness: None })
+    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points, by_thickness: None, lean: None })
 }
 
 /// Points further than [`TRIM_RMS`] times the solve's RMS from their reprojection are left
@@ -330,5 +495,77 @@ mod test {
         assert!(est.px.abs() < 0.005, "{est:?}");
         let none: Vec<Vec<[f64; 2]>> = views.iter().map(|v| vec![[0.0, 0.0]; v.object.len()]).collect();
         assert!(estimate(&views, &none, [346, 260], &calib::Options::default()).is_none());
+    }
+
+    /// An ellipse of semi-axes `a`, `b` whose major axis points along `phi`, as corners.
+    fn ellipse(a: f64, b: f64, phi: f64) -> Vec<[f64; 2]> {
+        (0..RESPONSE_CORNERS)
+            .map(|j| {
+                let t = std::f64::consts::TAU * j as f64 / RESPONSE_CORNERS as f64;
+                let (x, y) = (a * t.cos(), b * t.sin());
+                [x * phi.cos() - y * phi.sin(), x * phi.sin() + y * phi.cos()]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_circle_moves_back_along_its_motion_and_a_slanted_ellipse_also_across_it() {
+        let c = circle_response();
+        assert!((-1.3..-1.0).contains(&c), "a circle's centre falls behind by about the depth: {c}");
+        let across = |corners: &[[f64; 2]], th: f64| {
+            let u = [th.cos(), th.sin()];
+            let r = response_of_corners(corners, u).expect("a response");
+            (r[0] * u[0] + r[1] * u[1], -r[0] * u[1] + r[1] * u[0])
+        };
+        for th in [0.0, 0.4, 1.3, 2.9] {
+            let (along, side) = across(&ellipse(6.0, 6.0, 0.0), th);
+            assert!((along - c).abs() < 1e-4 && side.abs() < 1e-4, "circle at {th}: {along}, {side}, {c}");
+        }
+        // Along either axis the events are symmetric about the motion: nothing across.
+        let e = ellipse(8.0, 6.0, 0.5);
+        for th in [0.5, 0.5 + std::f64::consts::FRAC_PI_2] {
+            assert!(across(&e, th).1.abs() < 1e-4, "along an axis at {th}: {:?}", across(&e, th));
+        }
+        // At 45° to the axes it moves across, to either side as the slant's sign, about in
+        // proportion to (a − b)/(a + b).
+        let q = std::f64::consts::FRAC_PI_4;
+        let (plus, minus) = (across(&e, 0.5 + q).1, across(&e, 0.5 - q).1);
+        assert!(plus.abs() > 0.01 && (plus + minus).abs() < 1e-4, "{plus} {minus}");
+        let wider = across(&ellipse(10.0, 6.0, 0.5), 0.5 + q).1;
+        let ratio = wider / plus;
+        let expected = (4.0 / 16.0) / (2.0 / 14.0);
+        assert!((ratio / expected - 1.0).abs() < 0.25, "slant 0.25 against 0.143: ratio {ratio}, expected {expected}");
+    }
+
+    #[test]
+    fn a_loose_factor_is_shrunk_and_a_firm_one_kept() {
+        assert_eq!(shrunk(2.0, 0.0), 2.0);
+        assert_eq!(shrunk(0.0, 1.0), 0.0);
+        assert!((shrunk(1.0, 1.0) - 0.5).abs() < 1e-12);
+        assert!((shrunk(-3.0, 0.3) + 3.0 * 9.0 / 9.09).abs() < 1e-12);
+        assert_eq!(shrunk(f64::NAN, 1.0), 0.0);
+        assert_eq!(shrunk(1.0, f64::INFINITY), 0.0);
+    }
+
+    #[test]
+    fn a_lean_is_across_the_motion_and_in_proportion_to_it() {
+        let (views, origins) = moving_views(12);
+        let mut dirs = directions(&views, &origins);
+        dirs[3][0] = [0.0, 0.0];
+        let cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
+        // Circles of 15 mm on these tilted views: outlines that lean.
+        let one = across_outlines(&views, &dirs, &cal, 0.015);
+        let doubled: Vec<Vec<[f64; 2]>> =
+            dirs.iter().map(|d| d.iter().map(|d| [2.0 * d[0], 2.0 * d[1]]).collect()).collect();
+        let two = across_outlines(&views, &doubled, &cal, 0.015);
+        assert_eq!(one.len(), views.len());
+        let mut biggest = 0.0f64;
+        for ((d, a), b) in dirs.iter().flatten().zip(one.iter().flatten()).zip(two.iter().flatten()) {
+            assert!((d[0] * a[0] + d[1] * a[1]).abs() < 1e-12, "across the motion: {d:?} {a:?}");
+            assert!((2.0 * a[0] - b[0]).abs() < 1e-12 && (2.0 * a[1] - b[1]).abs() < 1e-12, "{a:?} {b:?}");
+            biggest = biggest.max(a[0].hypot(a[1]));
+        }
+        assert_eq!(one[3][0], [0.0, 0.0], "no direction, no lean");
+        assert!(biggest > 1e-4 && biggest < 0.5, "{biggest}");
     }
 }

@@ -461,6 +461,14 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             s.std_px,
             s.points
         )?;
+        if let Some(l) = &s.lean {
+            outln!(
+                "  and {:+.3} px across it on slanted outlines, in px of a shift at a fixed depth into the edge (the views ask for {:+.3} ± {:.3} px; events at a fixed depth lean by the shift, a pure delay by 0); counted in the σ below",
+                l.used_px,
+                l.px,
+                l.std_px
+            )?;
+        }
         if let Some(b) = &s.by_thickness {
             let k = c.intrinsics;
             outln!(
