@@ -334,15 +334,17 @@ fn paired(r: &Recorded, k: usize) -> Vec<Pair> {
     out
 }
 
-/// Which part of the centres' error carries a case's bias: `run_on` again with every centre
-/// that [`lag_by_speed`] pairs with its circle replaced by the truth plus a part of its error.
-/// Rows: the truth alone; the truth plus the error along the circle's motion only; plus the
-/// error across it only; and, per window, the error along the motion replaced by a straight
-/// line in the image speed fitted to that window's centres (what a lag that differs between a
-/// view's circles only by their speeds can be, to first order). Each row is
-/// `(what, outcome)`. `r`: what [`record`] gave.
+/// Which part of the centres' error carries a case's bias: `run_on` again on the centres
+/// that [`lag_by_speed`] pairs with a circle (the others left out), each replaced by the
+/// truth plus a part of its error. Rows: the paired centres as detected; the truth alone;
+/// the truth plus the error along the circle's motion only; plus the error across it only;
+/// and, per window, the error along the motion replaced by a straight line in the image
+/// speed fitted to that window's centres (what a lag that differs between a view's circles
+/// only by their speeds can be, to first order). Each row is `(what, outcome)`. `r`: what
+/// [`record`] gave.
 pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, Result<Outcome, String>)> {
-    const PARTS: [&str; 4] = [
+    const PARTS: [&str; 5] = [
+        "the paired centres as detected",
         "truth alone",
         "truth plus the error along the motion",
         "truth plus the error across the motion",
@@ -369,17 +371,21 @@ pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, 
                 let sss: f64 = paired.iter().map(|x| (x.3 - ms).powi(2)).sum();
                 let ssa: f64 = paired.iter().map(|x| (x.3 - ms) * (x.4 - ma)).sum();
                 let slope = if sss > 1e-9 { ssa / sss } else { 0.0 };
+                let mut kept = Vec::with_capacity(paired.len());
                 for &(ci, t, u, speed, along, across) in &paired {
                     let (a, c) = match part {
-                        0 => (0.0, 0.0),
-                        1 => (along, 0.0),
-                        2 => (0.0, across),
+                        0 => (along, across),
+                        1 => (0.0, 0.0),
+                        2 => (along, 0.0),
+                        3 => (0.0, across),
                         _ => (ma + slope * (speed - ms), across),
                     };
-                    let c_ = &mut moved.windows[k].centers[ci];
+                    let mut c_ = r.windows[k].centers[ci];
                     c_.u = (t[0] + a * u[0] - c * u[1]) as f32;
                     c_.v = (t[1] + a * u[1] + c * u[0]) as f32;
+                    kept.push(c_);
                 }
+                moved.windows[k].centers = kept;
             }
             (what, run_on(case, sensor, &moved))
         })
