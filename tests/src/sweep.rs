@@ -287,7 +287,7 @@ pub fn lag_by_speed(r: &Recorded) -> Vec<(f64, f64, usize, f64)> {
     const BIN: f64 = 50.0;
     let mut bins = vec![(0usize, 0.0f64); 16];
     for k in 0..r.windows.len() {
-        for (_, _, d, v) in paired(r, k) {
+        for (_, _, d, v) in paired(r, k, LAG_PAIRING_PX) {
             let speed = v[0].hypot(v[1]);
             let bin = &mut bins[((speed / BIN) as usize).min(15)];
             bin.0 += 1;
@@ -305,10 +305,18 @@ pub fn lag_by_speed(r: &Recorded) -> Vec<(f64, f64, usize, f64)> {
 /// (px), the circle's image velocity (px/s))`.
 type Pair = (usize, [f64; 2], [f64; 2], [f64; 2]);
 
-/// The centres of window `k` of `r` paired with their circles: each centre within 2 px of a
-/// circle wholly in view that moves, its velocity from the windows on either side (none
-/// for the first and last windows).
-fn paired(r: &Recorded, k: usize) -> Vec<Pair> {
+/// How far from its circle's true centre a centre is paired with it for [`lag_by_speed`], px:
+/// beyond, the nearest circle is not this centre's, or the fit is a stray.
+const LAG_PAIRING_PX: f64 = 2.0;
+
+/// How far for [`decompose`], px: a dim pixel's centres lag their circles by up to 2 px, and
+/// the grid's circles lie 10 px and more apart.
+const DECOMPOSE_PAIRING_PX: f64 = 4.0;
+
+/// The centres of window `k` of `r` paired with their circles: each centre within `max_px`
+/// of a circle wholly in view that moves, its velocity from the windows on either side
+/// (none for the first and last windows).
+fn paired(r: &Recorded, k: usize, max_px: f64) -> Vec<Pair> {
     let (Some(before), Some(after)) = (k.checked_sub(1).and_then(|j| r.windows.get(j)), r.windows.get(k + 1)) else {
         return Vec::new();
     };
@@ -322,8 +330,7 @@ fn paired(r: &Recorded, k: usize) -> Vec<Pair> {
         let Some(i) = r.nearest(k, p) else { continue };
         let (t, a, b) = (&r.truth[k][i], &r.truth[k - 1][i], &r.truth[k + 1][i]);
         let d = [p[0] - t.centre[0], p[1] - t.centre[1]];
-        // Beyond 2 px the nearest circle is not this centre's (or the fit is a stray).
-        if !t.in_view || d[0].hypot(d[1]) > 2.0 {
+        if !t.in_view || d[0].hypot(d[1]) > max_px {
             continue;
         }
         let v = [(b.centre[0] - a.centre[0]) / dt, (b.centre[1] - a.centre[1]) / dt];
@@ -335,7 +342,7 @@ fn paired(r: &Recorded, k: usize) -> Vec<Pair> {
 }
 
 /// Which part of the centres' error carries a case's bias: `run_on` again on the centres
-/// that [`lag_by_speed`] pairs with a circle (the others left out), each replaced by the
+/// paired with a circle (within 4 px; the others left out), each replaced by the
 /// truth plus a part of its error. Rows: the paired centres as detected; the truth alone;
 /// the truth plus the error along the circle's motion only; plus the error across it only;
 /// and, per window, the error along the motion replaced by a straight line in the image
@@ -357,7 +364,7 @@ pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, 
             let mut moved = r.clone();
             for k in 0..r.windows.len() {
                 // (centre index, truth, unit motion, speed, error along, error across)
-                let paired: Vec<_> = paired(r, k)
+                let paired: Vec<_> = paired(r, k, DECOMPOSE_PAIRING_PX)
                     .into_iter()
                     .map(|(ci, t, d, v)| {
                         let speed = v[0].hypot(v[1]);
