@@ -107,6 +107,9 @@ pub struct SolveArgs {
     /// moves them forward by that much first; the amount is printed and in the JSON result.
     /// It also solves the lag as a distance in proportion to each circle's edge thickness
     /// (slow, dim pixels smear thick edges more) and counts what that changes in each σ.
+    /// Where a circle images as a slanted ellipse, the same late events also move its centre
+    /// across the motion; the solve estimates how far (the lean, printed and in the JSON
+    /// result), moves the centres back by it and counts it in each σ.
     #[arg(long)]
     pub no_edge_shift: bool,
     /// Solve on each window's centres alone. By default each board point's centre in a view
