@@ -89,7 +89,7 @@ pub fn shrunk(estimate: f64, std: f64) -> f64 {
     if total.is_nan() || total <= 0.0 || total.is_infinite() {
         return 0.0;
     }
-    estimate * e2 / (e2 + s2)
+    estimate * e2 / total
 }
 
 /// The shift taken in proportion to how thick each circle's edge looked, instead of one
