@@ -357,29 +357,36 @@ pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, 
         "truth plus the error across the motion",
         "along the motion: each window's line in the speed",
     ];
+    // Per window: its pairs (centre index, truth, unit motion, speed, error along, error
+    // across), and the line in the speed fitted to the errors along (mean speed, mean error,
+    // slope); the same for every part.
+    let windows: Vec<_> = (0..r.windows.len())
+        .map(|k| {
+            let paired: Vec<_> = paired(r, k, DECOMPOSE_PAIRING_PX)
+                .into_iter()
+                .map(|(ci, t, d, v)| {
+                    let speed = v[0].hypot(v[1]);
+                    let u = [v[0] / speed, v[1] / speed];
+                    (ci, t, u, speed, d[0] * u[0] + d[1] * u[1], -d[0] * u[1] + d[1] * u[0])
+                })
+                .collect();
+            let n = (paired.len() as f64).max(1.0);
+            let ms = paired.iter().map(|x| x.3).sum::<f64>() / n;
+            let ma = paired.iter().map(|x| x.4).sum::<f64>() / n;
+            let sss: f64 = paired.iter().map(|x| (x.3 - ms).powi(2)).sum();
+            let ssa: f64 = paired.iter().map(|x| (x.3 - ms) * (x.4 - ma)).sum();
+            let slope = if sss > 1e-9 { ssa / sss } else { 0.0 };
+            (paired, ms, ma, slope)
+        })
+        .collect();
     PARTS
         .iter()
         .enumerate()
         .map(|(part, &what)| {
             let mut moved = r.clone();
-            for k in 0..r.windows.len() {
-                // (centre index, truth, unit motion, speed, error along, error across)
-                let paired: Vec<_> = paired(r, k, DECOMPOSE_PAIRING_PX)
-                    .into_iter()
-                    .map(|(ci, t, d, v)| {
-                        let speed = v[0].hypot(v[1]);
-                        let u = [v[0] / speed, v[1] / speed];
-                        (ci, t, u, speed, d[0] * u[0] + d[1] * u[1], -d[0] * u[1] + d[1] * u[0])
-                    })
-                    .collect();
-                let n = (paired.len() as f64).max(1.0);
-                let ms = paired.iter().map(|x| x.3).sum::<f64>() / n;
-                let ma = paired.iter().map(|x| x.4).sum::<f64>() / n;
-                let sss: f64 = paired.iter().map(|x| (x.3 - ms).powi(2)).sum();
-                let ssa: f64 = paired.iter().map(|x| (x.3 - ms) * (x.4 - ma)).sum();
-                let slope = if sss > 1e-9 { ssa / sss } else { 0.0 };
+            for (k, (paired, ms, ma, slope)) in windows.iter().enumerate() {
                 let mut kept = Vec::with_capacity(paired.len());
-                for &(ci, t, u, speed, along, across) in &paired {
+                for &(ci, t, u, speed, along, across) in paired {
                     let (a, c) = match part {
                         0 => (along, across),
                         1 => (0.0, 0.0),
