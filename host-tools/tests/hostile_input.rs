@@ -835,3 +835,56 @@ fn a_chunk_dimension_of_zero_is_an_error() {
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("zero_chunk.h5") && err.contains("'events/x'") && err.contains("chunk dimension"), "{err}");
 }
+
+#[test]
+fn simulate_follows_recorded_poses_and_refuses_bad_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    // The board 0.5 m ahead, sliding 5 cm to the left over 0.5 s; a DAVIS346-like camera and
+    // a 3x7 grid of 34 mm, as an emulator's truth.json gives them.
+    let frames: Vec<_> = (0..=5)
+        .map(|k| {
+            let t = 0.1 * f64::from(k);
+            serde_json::json!({ "t": t, "rvec": [0.0, 0.0, 0.0], "tvec": [-0.1 - 0.1 * t, -0.06, 0.5] })
+        })
+        .collect();
+    let file = serde_json::json!({
+        "K": { "fx": 355.0, "fy": 354.3, "cx": 160.4, "cy": 125.3 },
+        "dist": { "k1": -0.34, "k2": 0.12, "p1": -0.0005, "p2": -0.0005, "k3": 0.0 },
+        "sensor": { "width": 346, "height": 260 },
+        "pattern": { "rows": 3, "cols": 7, "spacing_m": 0.034, "radius_m": 0.0119 },
+        "frames30": { "frames": frames },
+    });
+    let poses = dir.path().join("truth.json");
+    std::fs::write(&poses, file.to_string()).unwrap();
+    // Into a folder that does not exist yet.
+    let out = dir.path().join("new").join("rec.txt");
+    let (code, _, err) =
+        evcal(&["simulate", "--poses", s(&poses), "--seconds", "0.5", "--step-ms", "100", "-o", s(&out)]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("motion, camera, sensor size, grid from"), "{err}");
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("new").join("truth.json")).unwrap()).unwrap();
+    assert_eq!((truth["board"]["rows"].as_u64(), truth["board"]["cols"].as_u64()), (Some(3), Some(7)));
+    assert_eq!(truth["camera"]["fx"].as_f64(), Some(355.0));
+    let windows = truth["windows"].as_array().unwrap();
+    assert!(!windows.is_empty());
+    for w in windows {
+        // The poses between the file's are its poses' line.
+        let t = w["t_ref_us"].as_f64().unwrap() * 1e-6;
+        let x = w["tvec"][0].as_f64().unwrap();
+        assert!((x - (-0.1 - 0.1 * t)).abs() < 1e-9, "at {t} s the board is at x {x}");
+    }
+    // Beyond the poses, a file of none, and a file that is not a motion: refused, with why.
+    let (code, _, err) = evcal(&["simulate", "--poses", s(&poses), "--seconds", "2", "-o", s(&out)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("goes beyond them"), "{err}");
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"frames": [{"t": 0, "rvec": [0, 0, 0], "tvec": [0, 0, 0.5]}]}"#).unwrap();
+    let (code, _, err) = evcal(&["simulate", "--poses", s(&bad), "-o", s(&dir.path().join("x.txt"))]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("bad.json holds no motion to follow") && err.contains("at least 2"), "{err}");
+    assert!(!dir.path().join("x.txt").exists());
+    let (code, _, err) = evcal(&["simulate", "--poses", s(&poses), "--trajectory", "spiral", "-o", s(&out)]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("cannot be used with"), "{err}");
+}

@@ -6,6 +6,10 @@
 //! calibrate` does with its defaults; one table row per recording: fx, fy error (%), cx, cy
 //! error (px), each also in units of the printed σ, the RMS and the views used.
 //!
+//! `--truth FILE` takes the truth from FILE instead of each DIR's `truth.json`: for a
+//! recording of the same motion made by `evcal simulate --poses FILE` (evcal's own pixels
+//! on that motion), whose rows and cached detections are then named after its folder.
+//!
 //! `--detections DIR` reads (or, the first time, writes) each recording's detection windows
 //! as `DIR/<name>.jsonl`, so that a rerun skips the detection core. `--diagnose` also solves
 //! the same views on the true centres (projected circle centres, and projected ellipse
@@ -309,15 +313,17 @@ fn errors(got: &Intrinsics, truth: &Intrinsics) -> [f64; 4] {
 
 fn main() {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut cache: Option<PathBuf> = None;
-    if let Some(i) = args.iter().position(|a| a == "--detections") {
+    let mut path = |name: &str, what: &str| -> Option<PathBuf> {
+        let i = args.iter().position(|a| a == name)?;
         if i + 1 >= args.len() {
-            eprintln!("--detections needs a folder");
+            eprintln!("{name} needs {what}");
             std::process::exit(2);
         }
-        cache = Some(PathBuf::from(args.remove(i + 1)));
+        let p = PathBuf::from(args.remove(i + 1));
         args.remove(i);
-    }
+        Some(p)
+    };
+    let (cache, truth_file) = (path("--detections", "a folder"), path("--truth", "a file"));
     let mut value = |name: &str| -> Option<f64> {
         let i = args.iter().position(|a| a == name)?;
         let v = args.get(i + 1).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite() && *v > 0.0);
@@ -337,7 +343,7 @@ fn main() {
     let (diagnose, no_edge_shift, no_smoothing) = (flag("--diagnose"), flag("--no-edge-shift"), flag("--no-smoothing"));
     if args.is_empty() {
         eprintln!(
-            "usage: emulator [--detections DIR] [--diagnose] [--no-edge-shift] [--no-smoothing] \
+            "usage: emulator [--detections DIR] [--truth FILE] [--diagnose] [--no-edge-shift] [--no-smoothing] \
              [--events-per-window N] [--step-ms MS] [--trail-filter-ms T] RECORDING_DIR..."
         );
         std::process::exit(2);
@@ -345,13 +351,16 @@ fn main() {
     println!("| recording | fx error | fy error | cx error | cy error | fx, fy, cx, cy error / σ | RMS | views |");
     println!("|---|---|---|---|---|---|---|---|");
     for dir in args.iter().map(PathBuf::from) {
-        let truth: Truth = std::fs::read(dir.join("truth.json"))
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .unwrap_or_else(|| {
-                eprintln!("{}: no readable truth.json", dir.display());
+        let truth_path = truth_file.clone().unwrap_or_else(|| dir.join("truth.json"));
+        let mut truth: Truth =
+            std::fs::read(&truth_path).ok().and_then(|b| serde_json::from_slice(&b).ok()).unwrap_or_else(|| {
+                eprintln!("{}: no readable truth", truth_path.display());
                 std::process::exit(1)
             });
+        if truth_file.is_some() {
+            // Another recording of the same motion: named (and cached) as its folder.
+            truth.name = dir.file_name().map_or_else(|| "recording".into(), |n| n.to_string_lossy().into_owned());
+        }
         let k = truth.intrinsics();
         let sensor = SensorSize { width: truth.sensor.width, height: truth.sensor.height };
         let mut windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment, false);
@@ -432,6 +441,8 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     let mut detected = Vec::new();
     // Per point of `delayed`: the unit direction of its circle's motion and its residual.
     let mut motion: Vec<([f64; 2], [f64; 2])> = Vec::new();
+    // Per point of `delayed`: its image speed (px/s) and its place from the principal point.
+    let mut kin: Vec<[f64; 3]> = Vec::new();
     let mut delays = Vec::new();
     // Per point of `delayed`: how its outline leans against its motion (`outline_slant`).
     let mut slants: Vec<f64> = Vec::new();
@@ -479,6 +490,7 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
             let (vx, vy) = (later[0] - e[0], later[1] - e[1]);
             let n = vx.hypot(vy).max(1e-12);
             motion.push(([vx / n, vy / n], [m[0] - e[0], m[1] - e[1]]));
+            kin.push([n / 1e-3, e[0] - k.cx, e[1] - k.cy]);
             slants.push(outline_slant(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(0.0));
             let f = fitted_outline_centre(truth, k, o, t - d, [vx / n, vy / n]).unwrap_or(e);
             {
@@ -588,6 +600,19 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     show("true outline centres at each view's best delay, solved as centres", &delayed, &centre_only);
     show("true outline centres at each view's best delay, outlines modelled", &delayed, &plain);
     show("detected, outlines modelled", &detected, &plain);
+    // Whether fewer unknowns would hold the error: a focal length traded against the
+    // distortion or the principal point moves with them.
+    show("detected, k3 = 0, p = 0", &detected, &Options { fix_k3: true, zero_tangential: true, ..plain.clone() });
+    show(
+        "detected, principal point fixed at the truth",
+        &detected,
+        &Options { fix_principal_point: true, start: Some(*k), ..plain.clone() },
+    );
+    show(
+        "detected, k3 = 0, p = 0, principal point fixed",
+        &detected,
+        &Options { fix_k3: true, zero_tangential: true, fix_principal_point: true, start: Some(*k), ..plain.clone() },
+    );
     for (i, b) in radial_bins.iter().enumerate() {
         if b[0] > 0.0 {
             let n = b[0];
@@ -636,6 +661,22 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
                 "    along residual = {g0:+.4} px + speed · ({:+.2} ms {:+.2} ms/100 px · x {:+.2} ms/100 px · y {:+.2} ms/(100 px)² · ρ²)",
                 1e3 * g1, 1e3 * g2, 1e3 * g3, 1e3 * g4
             );
+            // A delay that differs over the sensor would move the principal point: its parts
+            // taken out of the detected centres.
+            for (name, cx_, cy_, r2) in [("x", *g2, 0.0, 0.0), ("y", 0.0, *g3, 0.0), ("x, y, ρ²", *g2, *g3, *g4)] {
+                let mut moved = detected.clone();
+                let mut j = 0;
+                for v in moved.iter_mut() {
+                    for p in v.image.iter_mut() {
+                        let (u, _) = motion[j];
+                        let [sp, x, y] = kin[j];
+                        j += 1;
+                        let a = sp * (cx_ * x / 100.0 + cy_ * y / 100.0 + r2 * (x * x + y * y) / 1e4);
+                        *p = [p[0] - a * u[0], p[1] - a * u[1]];
+                    }
+                }
+                show(&format!("detected less the delay's part in {name} (fitted against the truth)"), &moved, &plain);
+            }
         }
         if let [k0, k1] = ls(0, &[9]).as_slice() {
             let ks: Vec<f64> = feats.iter().map(|f| f[9].abs()).collect();
@@ -891,4 +932,55 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
     }
     show("truth at the delay plus the residual along the motion only", &along, &plain);
     show("truth at the delay plus the residual across the motion only", &across, &plain);
+    {
+        // Where the across-motion error's focal-length error comes from: the truth plus the
+        // across part of one grid position's (or one stretch of time's) residuals only.
+        let base = solve(&delayed, &plain).map(|e| e[0]).unwrap_or(0.0);
+        let mut keys: Vec<[i64; 2]> = Vec::new();
+        for v in &delayed {
+            for o in &v.object {
+                let key = [(o[0] * 1e4).round() as i64, (o[1] * 1e4).round() as i64];
+                if !keys.contains(&key) {
+                    keys.push(key);
+                }
+            }
+        }
+        keys.sort();
+        // Each part's fx (%) beside the truth alone's, and their sum (the whole, when the
+        // solve is linear in so small an error).
+        let split = |what: &str, parts: Vec<Vec<View>>| {
+            let fx: Vec<f64> = parts.iter().map(|m| solve(m, &plain).map_or(f64::NAN, |e| e[0] - base)).collect();
+            let list: Vec<String> = fx.iter().map(|e| format!("{e:+.3}")).collect();
+            println!(
+                "      fx (%) from the across part of {what} alone: {}; sum {:+.3} %",
+                list.join(" "),
+                fx.iter().sum::<f64>()
+            );
+        };
+        let by_circle = keys
+            .iter()
+            .map(|key| {
+                let mut moved = delayed.clone();
+                for (vd, va) in moved.iter_mut().zip(&across) {
+                    for ((p, o), q) in vd.image.iter_mut().zip(&vd.object).zip(&va.image) {
+                        if [(o[0] * 1e4).round() as i64, (o[1] * 1e4).round() as i64] == *key {
+                            *p = *q;
+                        }
+                    }
+                }
+                moved
+            })
+            .collect();
+        split("each circle (in index order)", by_circle);
+        let (nv, groups) = (delayed.len(), 12);
+        let by_time = (0..groups)
+            .map(|g| {
+                let (a, b) = (g * nv / groups, (g + 1) * nv / groups);
+                let mut moved = delayed.clone();
+                moved[a..b].clone_from_slice(&across[a..b]);
+                moved
+            })
+            .collect();
+        split("each twelfth of the views", by_time);
+    }
 }

@@ -1,7 +1,7 @@
 //! Everything a simulation depends on: the camera, the board, the motion, the light and the
 //! pixels' model, and the seed.
 
-use super::{Board, Camera, Trajectory};
+use super::{Board, Camera, RecordedMotion, Trajectory};
 use serde::{Deserialize, Serialize};
 
 /// Lighting presets.
@@ -157,7 +157,7 @@ pub struct SimConfig {
     pub light: Light,
     /// The pixel model.
     pub pixel: PixelModel,
-    /// Typical distance from camera to board, metres.
+    /// Typical distance from camera to board, metres; the lens is focused there.
     pub distance: f64,
     /// Edge blur at the focus distance, pixels (σ of a Gaussian).
     pub blur_px: f64,
@@ -169,6 +169,10 @@ pub struct SimConfig {
     pub seed: u64,
     /// Timestamp of the first instant, microseconds (a nonzero start exercises readers).
     pub start_us: u64,
+    /// A recorded motion the camera follows instead of [`trajectory`](Self::trajectory)
+    /// ([`RecordedMotion`]); `None` for the trajectory.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub recorded_motion: Option<RecordedMotion>,
 }
 
 impl SimConfig {
@@ -201,6 +205,7 @@ impl SimConfig {
             clutter: 60,
             seed,
             start_us: 0,
+            recorded_motion: None,
         })
     }
 }

@@ -1,7 +1,8 @@
 //! A simulated event camera watching an asymmetric circle grid, with ground truth.
 //!
 //! The simulator renders the scene ([`scene`]) through a distorted pinhole camera
-//! ([`camera`]) moving along a hand-held trajectory ([`trajectory`]) and turns the change of
+//! ([`camera`]) moving along a hand-held trajectory ([`trajectory`]), or a recorded one
+//! ([`recorded_motion`]), and turns the change of
 //! each pixel's log intensity into events the way a DVS pixel does:
 //!
 //! * an event fires when the log intensity has moved by the pixel's contrast threshold from
@@ -26,6 +27,7 @@ pub mod camera;
 mod config;
 mod ground_truth;
 mod pixel;
+pub mod recorded_motion;
 mod render;
 pub mod scene;
 mod skipping;
@@ -35,6 +37,7 @@ pub mod trajectory;
 pub use camera::{Camera, Pose};
 pub use config::{Light, PixelModel, SimConfig};
 pub use ground_truth::{truth, CircleTruth, FrameTruth};
+pub use recorded_motion::{MotionError, RecordedMotion};
 pub use scene::{Board, Scene};
 pub use trajectory::Trajectory;
 
@@ -159,6 +162,9 @@ impl Simulator {
 
     /// The camera pose at `t` seconds since the start.
     pub fn pose_at(&self, t: f64) -> Pose {
-        self.cfg.trajectory.pose(&self.cfg.board, self.cfg.distance, self.fov_half, t)
+        match &self.cfg.recorded_motion {
+            Some(r) => r.pose(t),
+            None => self.cfg.trajectory.pose(&self.cfg.board, self.cfg.distance, self.fov_half, t),
+        }
     }
 }

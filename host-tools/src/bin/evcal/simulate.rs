@@ -7,7 +7,7 @@ use evcal_core::{event::SensorSize, window::WindowConfig};
 use evcal_host::{
     input::detections,
     input::recording::{write_ecalib_h5, write_text},
-    sim::{Camera, Light, PixelModel, SimConfig, Trajectory},
+    sim::{Camera, Light, PixelModel, RecordedMotion, SimConfig, Trajectory},
 };
 use std::path::{Path, PathBuf};
 
@@ -23,6 +23,16 @@ pub struct SimulateArgs {
     /// Camera motion.
     #[arg(long, value_enum, default_value_t = Trajectory::Cone)]
     pub trajectory: Trajectory,
+    /// Follow a recorded motion instead of --trajectory: a JSON file of evenly spaced poses,
+    /// `frames30.frames` or `frames`, each `{"t": s, "rvec": [..], "tvec": [..]}` (board to
+    /// camera, OpenCV's convention, metres), as the truth.json of an independent emulator's
+    /// recording holds them. The camera (`K`, `dist`), the sensor's size (`sensor`) and the
+    /// grid (`pattern`: rows, cols, spacing_m, radius_m) are taken from the file too when it
+    /// has them, in place of --sensor's and --pattern's. Use it to see how far a recording's
+    /// motion lets the calibration scatter with evcal's own pixels: simulate it with a few
+    /// seeds.
+    #[arg(long, value_name = "FILE", conflicts_with = "trajectory")]
+    pub poses: Option<PathBuf>,
     /// Lighting: good, or low (darker, far noisier).
     #[arg(long, value_enum, default_value_t = Light::Good)]
     pub light: Light,
@@ -126,8 +136,30 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     let mut cfg = SimConfig::preset(&a.sensor, &a.pattern, a.trajectory, a.light, a.seed)
         .ok_or_else(|| anyhow::anyhow!("unknown sensor or pattern preset"))?;
     cfg.pixel = a.pixel.apply(cfg.pixel)?;
+    let mut took = Vec::new();
+    if let Some(path) = &a.poses {
+        let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+        let motion = RecordedMotion::from_json(&text)
+            .with_context(|| format!("{} holds no motion to follow", path.display()))?;
+        // One interval past the last pose holds it (a recording's poses often stop a frame
+        // short of its events); more would be a still camera the file never showed.
+        if a.seconds > motion.end() + motion.dt * 1.001 {
+            bail!(
+                "{} holds poses from {:.3} to {:.3} s; --seconds {} goes beyond them",
+                path.display(),
+                motion.t0,
+                motion.end(),
+                a.seconds
+            );
+        }
+        took = motion.apply(&mut cfg);
+    }
     if !(a.step_ms.is_finite() && a.step_ms >= 0.0) {
         bail!("--step-ms must be a non-negative number of milliseconds");
+    }
+    // Before the simulation, not after it: a missing folder is no reason to lose its work.
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create the folder {}", dir.display()))?;
     }
     let sensor = SensorSize { width: cfg.camera.width, height: cfg.camera.height };
     let (events, sim) = run_simulation(cfg, a.seconds, a.quiet)?;
@@ -145,6 +177,11 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     let truth_path = a.out.parent().unwrap_or(Path::new(".")).join("truth.json");
     write_json(&truth_path, &truth_json(&sim, &truths))?;
     if !a.quiet {
+        if let (Some(path), false) = (&a.poses, took.is_empty()) {
+            eprintln!("evcal: motion, {} from {}", took.join(", "), path.display());
+        } else if let Some(path) = &a.poses {
+            eprintln!("evcal: motion from {}", path.display());
+        }
         eprintln!(
             "evcal: {} events over {:.2} s ({} windows) -> {}; truth -> {}\nevcal: truth for {}",
             events.len(),
