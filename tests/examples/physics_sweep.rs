@@ -14,8 +14,8 @@
 //! `--lag` prints, under each case's row, how far its centres lag their circles along the
 //! motion at each image speed, against the simulator's truth (`sweep::lag_by_speed`).
 //! `--decompose` solves each case again on the truth plus only a part of its centres' error
-//! (along the motion, across it, or along it as a line in the speed per window;
-//! `sweep::decompose`), to tell which part carries a bias.
+//! (along the motion, across it, along it as a line in the speed per window, or along it
+//! as each window's mean; `sweep::decompose`), to tell which part carries a bias.
 //!
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
 //! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.

@@ -345,17 +345,20 @@ fn paired(r: &Recorded, k: usize, max_px: f64) -> Vec<Pair> {
 /// paired with a circle (within 4 px; the others left out), each replaced by the
 /// truth plus a part of its error. Rows: the paired centres as detected; the truth alone;
 /// the truth plus the error along the circle's motion only; plus the error across it only;
-/// and, per window, the error along the motion replaced by a straight line in the image
+/// per window, the error along the motion replaced by a straight line in the image
 /// speed fitted to that window's centres (what a lag that differs between a view's circles
-/// only by their speeds can be, to first order). Each row is `(what, outcome)`. `r`: what
+/// only by their speeds can be, to first order); and the truth plus each window's mean error
+/// along the motion only (a shift that differs from view to view, not between a view's
+/// circles). Each row is `(what, outcome)`. `r`: what
 /// [`record`] gave.
 pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, Result<Outcome, String>)> {
-    const PARTS: [&str; 5] = [
+    const PARTS: [&str; 6] = [
         "the paired centres as detected",
         "truth alone",
         "truth plus the error along the motion",
         "truth plus the error across the motion",
         "along the motion: each window's line in the speed",
+        "truth plus each window's mean error along the motion",
     ];
     // Per window: its pairs (centre index, truth, unit motion, speed, error along, error
     // across), and the line in the speed fitted to the errors along (mean speed, mean error,
@@ -392,7 +395,8 @@ pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, 
                         1 => (0.0, 0.0),
                         2 => (along, 0.0),
                         3 => (0.0, across),
-                        _ => (ma + slope * (speed - ms), across),
+                        4 => (ma + slope * (speed - ms), across),
+                        _ => (*ma, 0.0),
                     };
                     let mut c_ = r.windows[k].centers[ci];
                     c_.u = (t[0] + a * u[0] - c * u[1]) as f32;
