@@ -374,6 +374,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let setup = &Setup { calib: calib_opts, ..setup.clone() };
     let mut edge_shift = None;
     let mut shift_directions = Vec::new();
+    let mut bend_directions = Vec::new();
     let mut alternative = None;
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
@@ -390,6 +391,8 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         if let Some(s) = edge_shift {
             used = edge_shift::shifted(&used, &dirs, s.px);
             shift_directions = dirs;
+            let bends = edge_shift::bend_directions(&all_views, &views.origins);
+            bend_directions = selection.chosen.iter().map(|&i| bends[i].clone()).collect();
         }
     }
     // Views of one stretch of the recording err alike; the σ printed must know it.
@@ -399,30 +402,57 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         ..setup.calib.clone()
     };
     let mut calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
-    // On slanted outlines the shift leans across the motion by what the views say (see
-    // `edge_shift`'s note): solved once more to estimate it, and again on the centres it
-    // moves, where it counts in the σ as the shift does.
-    let mut lean_px = 0.0;
-    if let (Some(s), Some(radius)) = (edge_shift.as_mut(), setup.calib.circle_radius) {
-        let across = edge_shift::across_outlines(&used, &grouped.shift_directions, &calibration, radius);
-        let probe = calib::Options { lean_directions: across, ..grouped.clone() };
-        if let Some(l) = calib::calibrate(&used, setup.image_size, &probe).ok().and_then(|c| c.lean) {
-            let lean = edge_shift::shrunk(l.step, l.std);
-            let moved = edge_shift::shifted(&used, &probe.lean_directions, lean);
-            if let Ok(c) = calib::calibrate(&moved, setup.image_size, &probe) {
-                s.lean = Some(edge_shift::Lean { px: l.step, std_px: l.std, used_px: lean });
-                (calibration, used, grouped, lean_px) = (c, moved, probe, lean);
+    // Further moves the views measure (see `edge_shift`'s note): on slanted outlines the
+    // shift leans across the motion, and a slow pixel's lag bends with the speed. Solved once
+    // more to estimate them together, then again on the centres they move, where they count
+    // in the σ as the shift does.
+    let mut applied: Vec<(Vec<Vec<[f64; 2]>>, f64)> = Vec::new();
+    if let Some(s) = edge_shift.as_mut() {
+        let lean = setup
+            .calib
+            .circle_radius
+            .map(|r| (false, edge_shift::across_outlines(&used, &grouped.shift_directions, &calibration, r)));
+        let bend = (bend_directions.len() == used.len()).then_some((true, bend_directions));
+        let candidates: Vec<(bool, Vec<Vec<[f64; 2]>>)> = lean.into_iter().chain(bend).collect();
+        let probe = calib::Options { moves: candidates.iter().map(|c| c.1.clone()).collect(), ..grouped.clone() };
+        let estimates = match candidates.is_empty() {
+            true => Vec::new(),
+            false => calib::calibrate(&used, setup.image_size, &probe).map(|c| c.moves).unwrap_or_default(),
+        };
+        let mut moved = used.clone();
+        let mut found = (None, None);
+        for ((is_bend, dirs), e) in candidates.into_iter().zip(estimates) {
+            let Some(e) = e else { continue };
+            let px = edge_shift::shrunk(e.step, e.std);
+            moved = edge_shift::shifted(&moved, &dirs, px);
+            let m = Some(edge_shift::Lean { px: e.step, std_px: e.std, used_px: px });
+            *(if is_bend { &mut found.1 } else { &mut found.0 }) = m;
+            applied.push((dirs, px));
+        }
+        if !applied.is_empty() {
+            let opts = calib::Options { moves: applied.iter().map(|a| a.0.clone()).collect(), ..grouped.clone() };
+            match calib::calibrate(&moved, setup.image_size, &opts) {
+                Ok(c) => {
+                    (s.lean, s.bend) = found;
+                    (calibration, used, grouped) = (c, moved, opts);
+                }
+                Err(_) => applied.clear(),
             }
         }
     }
     // What the views cannot tell apart is uncertain: the lag's other model's answer counts.
     if let (Some(s), Some((views, dirs, px))) = (edge_shift.as_mut(), alternative) {
-        // With the same lean (a move of its own, whichever model the shift follows).
-        let views = if lean_px != 0.0 && grouped.lean_directions.len() == views.len() {
-            edge_shift::shifted(&views, &grouped.lean_directions, lean_px)
-        } else {
-            views
-        };
+        // With the same further moves (their own, whichever model the shift follows).
+        let views = applied.iter().fold(
+            views,
+            |v, (d, px)| {
+                if d.len() == v.len() {
+                    edge_shift::shifted(&v, d, *px)
+                } else {
+                    v
+                }
+            },
+        );
         let opts = calib::Options { shift_directions: dirs, ..grouped.clone() };
         if let Ok(alt) = calib::calibrate(&views, setup.image_size, &opts) {
             let (a, b) = (alt.intrinsics.to_array(), calibration.intrinsics.to_array());

@@ -349,7 +349,9 @@ fn paired(r: &Recorded, k: usize, max_px: f64) -> Vec<Pair> {
 /// speed fitted to that window's centres (what a lag that differs between a view's circles
 /// only by their speeds can be, to first order); and the truth plus each window's mean error
 /// along the motion only (a shift that differs from view to view, not between a view's
-/// circles). Each row is `(what, outcome)`. `r`: what
+/// circles; telling only where a view's circles move alike, as on the square: where their
+/// speeds differ, as on a cone, it turns a delay the poses absorb into shifts they do not).
+/// Each row is `(what, outcome)`. `r`: what
 /// [`record`] gave.
 pub fn decompose(case: &Case, sensor: &str, r: &Recorded) -> Vec<(&'static str, Result<Outcome, String>)> {
     const PARTS: [&str; 6] = [

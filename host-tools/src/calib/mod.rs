@@ -91,13 +91,13 @@ pub struct Options {
     /// the standard deviations, its uncertainty carried into the intrinsics'
     /// ([`Calibration::shift_std_px`]). Empty, or not one entry per view: no shift.
     pub shift_directions: Vec<Vec<[f64; 2]>>,
-    /// Per view, per point, as `shift_directions`: the directions of a second move of the
-    /// detected centres, by one factor shared by all views (the edge shift's lean across the
-    /// motion on slanted outlines; see [`crate::views::edge_shift`]). The solve reports how
-    /// far along them the views would move the points ([`Calibration::lean`]), and the
-    /// factor counts as one more parameter in the standard deviations. Empty, or not one
-    /// entry per view: none.
-    pub lean_directions: Vec<Vec<[f64; 2]>>,
+    /// Further moves of the detected centres, each by one factor shared by all views: per
+    /// move, per view, per point, its direction, as `shift_directions` (the edge shift's
+    /// lean across the motion on slanted outlines, and its curvature in the image speed;
+    /// see [`crate::views::edge_shift`]). The solve reports how far along each the views
+    /// would move the points ([`Calibration::moves`]), and each factor counts as one more
+    /// parameter in the standard deviations. A move without one entry per view is left out.
+    pub moves: Vec<Vec<Vec<[f64; 2]>>>,
     /// Radius of the target's circles, metres: the solve then compares each detected centre
     /// with the centre of its circle's projected outline ([`outline_offset`]), which a circle
     /// fit measures, instead of the projection of the circle's centre. `None`: the latter, as
@@ -126,7 +126,7 @@ impl Default for Options {
             circle_radius: None,
             view_times: Vec::new(),
             shift_directions: Vec::new(),
-            lean_directions: Vec::new(),
+            moves: Vec::new(),
         }
     }
 }
@@ -205,9 +205,10 @@ pub struct Calibration {
     /// this solve ([`Options::shift_directions`]; the larger of the independent-error and
     /// the grouped figure, like `std_dev`); `None` without one.
     pub shift_std_px: Option<f64>,
-    /// With [`Options::lean_directions`]: how far along them the views would move the
-    /// points from where they were given, and that factor's σ as a parameter of this solve.
-    pub lean: Option<MoveEstimate>,
+    /// Per move of [`Options::moves`], in its order: how far along it the views would move
+    /// the points from where they were given, and that factor's σ as a parameter of this
+    /// solve (`None` for a move left out, or when the solve could not tell).
+    pub moves: Vec<Option<MoveEstimate>>,
     /// How many groups of views ([`Options::view_times`]) the grouped σ came from, widened
     /// for their number by [`few_groups_factor`]; `None` when `std_dev` is the
     /// independent-error figure alone (no times, or too few groups for a grouped σ).
@@ -247,7 +248,7 @@ impl Calibration {
 }
 
 /// A move of the points shared by all views, as the solve estimates it
-/// ([`Calibration::lean`]).
+/// ([`Calibration::moves`]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct MoveEstimate {
     /// The factor the views ask for: one Gauss–Newton step from the points as given, with
@@ -605,10 +606,10 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     fn per_kept<'a>(d: &'a [Vec<[f64; 2]>], n_views: usize, kept: &[usize]) -> Option<Vec<&'a [[f64; 2]]>> {
         (d.len() == n_views).then(|| kept.iter().map(|&v| &d[v][..]).collect())
     }
-    let (shift_dirs, lean_dirs) =
-        (per_kept(&opts.shift_directions, views.len(), &kept), per_kept(&opts.lean_directions, views.len(), &kept));
+    let shift_dirs = per_kept(&opts.shift_directions, views.len(), &kept);
+    let extra: Vec<Option<Vec<&[[f64; 2]]>>> = opts.moves.iter().map(|m| per_kept(m, views.len(), &kept)).collect();
     let has_shift = shift_dirs.is_some();
-    let move_dirs: Vec<Vec<&[[f64; 2]]>> = shift_dirs.into_iter().chain(lean_dirs).collect();
+    let move_dirs: Vec<Vec<&[[f64; 2]]>> = shift_dirs.into_iter().chain(extra.iter().flatten().cloned()).collect();
     let moves = (!move_dirs.is_empty()).then(|| solve::move_terms(&data, &k, &poses, &free, &move_dirs)).flatten();
     let n_free = sol.free.len();
     let n_moves = moves.as_ref().map_or(0, |t| t.scores.len());
@@ -625,7 +626,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
             }
         }
     }
-    let mut lean = None;
+    let mut estimates: Vec<Option<MoveEstimate>> = vec![None; opts.moves.len()];
     if let Some(inv) = hessian.try_inverse() {
         let move_scores: Vec<&[f64]> = moves.as_ref().map_or(Vec::new(), |t| t.scores.iter().map(|s| &s[..]).collect());
         let grouped = view_groups(opts, views.len(), &kept).and_then(|(groups, group_s)| {
@@ -646,13 +647,20 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         if has_shift && n_moves > 0 {
             shift_std_px = Some(sd(n_free).1);
         }
-        if let Some(t) = moves.as_ref().filter(|_| n_moves == usize::from(has_shift) + 1) {
+        if let Some(t) = moves.as_ref() {
             // The intrinsics and poses sit at their optimum; the moves' scores are what is
-            // left of the gradient.
-            let l = n_free + n_moves - 1;
-            let step = -(0..n_moves).map(|a| inv[(l, n_free + a)] * t.scores[a].iter().sum::<f64>()).sum::<f64>();
-            let std = sd(l).1;
-            lean = (step.is_finite() && std.is_finite()).then_some(MoveEstimate { step, std });
+            // left of the gradient. The further moves follow the shift, those left out
+            // skipped.
+            let mut l = n_free + usize::from(has_shift);
+            for (e, dirs) in estimates.iter_mut().zip(&extra) {
+                if dirs.is_none() || l >= n_free + n_moves {
+                    continue;
+                }
+                let step = -(0..n_moves).map(|a| inv[(l, n_free + a)] * t.scores[a].iter().sum::<f64>()).sum::<f64>();
+                let std = sd(l).1;
+                *e = (step.is_finite() && std.is_finite()).then_some(MoveEstimate { step, std });
+                l += 1;
+            }
         }
     }
     if let Some(a) = free.aspect {
@@ -677,7 +685,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         converged: sol.converged,
         circle_radius_m: opts.circle_radius,
         shift_std_px,
-        lean,
+        moves: estimates,
         sigma_groups,
         sigma_group_s,
     })
@@ -921,37 +929,47 @@ mod test {
     }
 
     #[test]
-    fn a_lean_the_points_were_moved_by_is_estimated_back_and_counted_in_the_sigma() {
+    fn moves_the_points_were_given_are_estimated_back_and_counted_in_the_sigma() {
         let t = truth();
         let views = synthetic_views(&t, 40, 0.05, 11);
-        // Directions that no pose or intrinsic change can mimic.
-        let dirs: Vec<Vec<[f64; 2]>> = views
-            .iter()
-            .enumerate()
-            .map(|(v, view)| {
-                (0..view.image.len())
-                    .map(|i| {
-                        let a = 0.7 * v as f64 + 2.3 * i as f64;
-                        [0.2 * a.cos(), 0.2 * a.sin()]
-                    })
-                    .collect()
-            })
-            .collect();
+        // Directions that no pose or intrinsic change can mimic, two unlike patterns.
+        let pattern = |f: f64, g: f64| -> Vec<Vec<[f64; 2]>> {
+            views
+                .iter()
+                .enumerate()
+                .map(|(v, view)| {
+                    (0..view.image.len())
+                        .map(|i| {
+                            let a = f * v as f64 + g * i as f64;
+                            [0.2 * a.cos(), 0.2 * a.sin()]
+                        })
+                        .collect()
+                })
+                .collect()
+        };
+        let (lean, curve) = (pattern(0.7, 2.3), pattern(1.9, 0.4));
         let moved: Vec<View> = views
             .iter()
-            .zip(&dirs)
-            .map(|(v, d)| View {
+            .zip(lean.iter().zip(&curve))
+            .map(|(v, (a, b))| View {
                 object: v.object.clone(),
-                image: v.image.iter().zip(d).map(|(p, d)| [p[0] + 0.8 * d[0], p[1] + 0.8 * d[1]]).collect(),
+                image: v
+                    .image
+                    .iter()
+                    .zip(a.iter().zip(b))
+                    .map(|(p, (a, b))| [p[0] + 0.8 * a[0] - 0.5 * b[0], p[1] + 0.8 * a[1] - 0.5 * b[1]])
+                    .collect(),
             })
             .collect();
         let plain = calibrate(&moved, [346, 260], &Options::default()).unwrap();
-        assert!(plain.lean.is_none());
-        let opts = Options { lean_directions: dirs, ..Options::default() };
+        assert!(plain.moves.is_empty());
+        // A third move without one entry per view is left out.
+        let opts = Options { moves: vec![lean, vec![Vec::new()], curve], ..Options::default() };
         let cal = calibrate(&moved, [346, 260], &opts).unwrap();
-        let l = cal.lean.expect("a lean estimate");
+        let [Some(a), None, Some(b)] = cal.moves[..] else { panic!("{:?}", cal.moves) };
         // The views ask to move the points back by what moved them.
-        assert!((l.step + 0.8).abs() < 3.0 * l.std && l.std < 0.1, "{l:?}");
+        assert!((a.step + 0.8).abs() < 3.0 * a.std && a.std < 0.1, "{a:?}");
+        assert!((b.step - 0.5).abs() < 3.0 * b.std && b.std < 0.1, "{b:?}");
         assert_eq!(plain.intrinsics, cal.intrinsics, "the σ changes, not the solution");
         for i in 0..4 {
             assert!(cal.std_dev[i] >= plain.std_dev[i] * (1.0 - 1e-9), "{i}: {cal:?} vs {plain:?}");

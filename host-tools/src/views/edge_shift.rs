@@ -29,8 +29,17 @@
 //! proportion to the speed moves the whole outline alike and nothing across. A slow
 //! pixel's events lie between and beyond the two, so the move across, the *lean*, is
 //! measured in its own right: in px of a shift at a fixed depth ([`across_outlines`] gives
-//! its directions), which the solve estimates from the views (`calib::Calibration::lean`).
+//! its directions), which the solve estimates from the views (`calib::Calibration::moves`).
 //! Events at a fixed depth lean by the shift itself, a pure delay by nothing.
+//!
+//! Nor is a slow pixel's lag quite in proportion to the speed. A pixel settles in a time set
+//! by its own bandwidth where an edge sweeps past faster than that, and by the edge's sweep
+//! where it is slower, so the lag in px bends between two slopes as the speed grows (the
+//! simulator's dim cone at 300 Hz: 0.83, 1.52 and 1.85 px behind at 25, 75 and 125 px/s).
+//! Its constant part is `δ`; its part in proportion to the speed is a delay each view's pose
+//! takes up; the bend is what neither does. Taken as a term in the square of each point's
+//! speed ([`bend_directions`]), it is one more move the solve estimates from the views, as
+//! the lean is, in px at [`BEND_SPEED_PX_S`]. An ideal pixel's lag does not bend.
 
 use crate::calib::{self, board_key, Intrinsics, Pose, View};
 use crate::views::ViewOrigin;
@@ -48,6 +57,10 @@ pub const FULL_DIRECTION_PX: f64 = 1.0;
 pub const MAX_SHIFT_PX: f64 = 0.5;
 /// The shift is estimated only from at least this many points with a direction.
 pub const MIN_POINTS_WITH_DIRECTION: usize = 200;
+/// The image speed at which the lag's bend is given, px/s: a hand-held board's circles
+/// move at tens to a few hundred px/s on the sensor. Only the unit of the figure printed;
+/// the bend is estimated as what it is at any speed.
+pub const BEND_SPEED_PX_S: f64 = 100.0;
 
 /// The measured shift of the centres along their motion.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -64,18 +77,23 @@ pub struct EdgeShift {
     /// How far the centres were also moved across their motion on slanted outlines.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lean: Option<Lean>,
+    /// How far the centres were also moved along their motion by the lag's bend in the
+    /// speed: px at [`BEND_SPEED_PX_S`], in proportion to the square of each one's speed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bend: Option<Lean>,
 }
 
-/// The edge shift's move across the motion on slanted outlines (see the module's note), in
-/// px of a shift at a fixed depth into the edge.
+/// A further move of the centres that the views measure (see the module's note): the
+/// edge shift's lean across the motion on slanted outlines, in px of a shift at a fixed
+/// depth into the edge, or the lag's bend, in px at [`BEND_SPEED_PX_S`].
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Lean {
-    /// The lean the views ask for, px.
+    /// The move the views ask for, px.
     pub px: f64,
     /// One standard deviation of it, px.
     pub std_px: f64,
-    /// The lean the centres were moved by, px: `px` shrunk towards 0 ([`shrunk`]), so that
-    /// a lean the views leave loose moves them little.
+    /// The move the centres were moved by, px: `px` shrunk towards 0 ([`shrunk`]), so that
+    /// a move the views leave loose moves them little.
     pub used_px: f64,
 }
 
@@ -143,17 +161,21 @@ pub fn scaled_by_thickness(dirs: &[Vec<[f64; 2]>], spreads: &[&[f64]]) -> Option
     )
 }
 
-/// Each point's direction of motion: the unit vector from where its board point was in the
-/// nearest earlier window that saw it (within [`MAX_NEIGHBOUR_GAP_S`]) to where it was in the
-/// nearest later one (one-sided at gaps), scaled down below
-/// [`FULL_DIRECTION_PX`] of displacement; zero where no neighbouring window saw it.
-/// `views` and `origins` pair up, in time order.
-pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
+/// A point's step between its neighbouring windows: its displacement, px, and the seconds
+/// it took.
+type Step = ([f64; 2], f64);
+
+/// Each point's step between its neighbouring windows: the displacement from where its
+/// board point was in the nearest earlier window that saw it (within
+/// [`MAX_NEIGHBOUR_GAP_S`]) to where it was in the nearest later one (one-sided at gaps),
+/// px, and the seconds between them; `None` where no neighbouring window saw it.
+fn neighbour_steps(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<Option<Step>>> {
     let maps: Vec<_> = views.iter().map(View::by_board_point).collect();
     let near = |a: usize, b: usize| match (origins.get(a), origins.get(b)) {
         (Some(x), Some(y)) => (x.t_s - y.t_s).abs() <= MAX_NEIGHBOUR_GAP_S,
         _ => false,
     };
+    let time = |j: usize| origins.get(j).map_or(f64::NAN, |o| o.t_s);
     (0..views.len())
         .map(|k| {
             views[k]
@@ -162,21 +184,57 @@ pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> 
                 .zip(&views[k].image)
                 .map(|(o, here)| {
                     // The nearest window before and after that saw this board point.
-                    let seen = |j: &usize| maps[*j].get(&board_key(o)).copied();
-                    let prev = (0..k).rev().take_while(|&j| near(j, k)).find_map(|j| seen(&j));
-                    let next = (k + 1..views.len()).take_while(|&j| near(j, k)).find_map(|j| seen(&j));
-                    let d = match (prev, next) {
-                        (Some(a), Some(b)) => [b[0] - a[0], b[1] - a[1]],
-                        (Some(a), None) => [here[0] - a[0], here[1] - a[1]],
-                        (None, Some(b)) => [b[0] - here[0], b[1] - here[1]],
-                        (None, None) => return [0.0, 0.0],
+                    let seen = |j: usize| maps[j].get(&board_key(o)).map(|p| (*p, time(j)));
+                    let prev = (0..k).rev().take_while(|&j| near(j, k)).find_map(seen);
+                    let next = (k + 1..views.len()).take_while(|&j| near(j, k)).find_map(seen);
+                    let ((a, ta), (b, tb)) = match (prev, next) {
+                        (Some(a), Some(b)) => (a, b),
+                        (Some(a), None) => (a, (*here, time(k))),
+                        (None, Some(b)) => ((*here, time(k)), b),
+                        (None, None) => return None,
                     };
-                    let len = d[0].hypot(d[1]);
-                    if len <= 1e-9 || len.is_nan() {
-                        return [0.0, 0.0];
-                    }
-                    let s = (len / FULL_DIRECTION_PX).min(1.0) / len;
-                    [d[0] * s, d[1] * s]
+                    Some(([b[0] - a[0], b[1] - a[1]], tb - ta))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// A step's direction: its unit vector, scaled down below [`FULL_DIRECTION_PX`] of
+/// displacement; zero for none.
+fn direction_of(step: Option<Step>) -> [f64; 2] {
+    let Some((d, _)) = step else { return [0.0; 2] };
+    let len = d[0].hypot(d[1]);
+    if len <= 1e-9 || len.is_nan() {
+        return [0.0; 2];
+    }
+    let s = (len / FULL_DIRECTION_PX).min(1.0) / len;
+    [d[0] * s, d[1] * s]
+}
+
+/// Each point's direction of motion: the unit vector from where its board point was in the
+/// nearest earlier window that saw it (within [`MAX_NEIGHBOUR_GAP_S`]) to where it was in the
+/// nearest later one (one-sided at gaps), scaled down below
+/// [`FULL_DIRECTION_PX`] of displacement; zero where no neighbouring window saw it.
+/// `views` and `origins` pair up, in time order.
+pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
+    neighbour_steps(views, origins).into_iter().map(|v| v.into_iter().map(direction_of).collect()).collect()
+}
+
+/// The directions of the lag's bend (see the module's note): each point's [`directions`]
+/// times the square of its image speed over [`BEND_SPEED_PX_S`], the speed from the same
+/// neighbouring windows; zero where they give none. A bend of `b` moves a point at that
+/// speed by `b` px.
+pub fn bend_directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
+    neighbour_steps(views, origins)
+        .into_iter()
+        .map(|v| {
+            v.into_iter()
+                .map(|step| {
+                    let speed = step.map_or(0.0, |(d, dt)| d[0].hypot(d[1]) / dt);
+                    let q = if speed.is_finite() { (speed / BEND_SPEED_PX_S).powi(2) } else { 0.0 };
+                    let d = direction_of(step);
+                    [d[0] * q, d[1] * q]
                 })
                 .collect()
         })
@@ -371,7 +429,14 @@ pub fn estimate(
     }
     // Residual variance per coordinate; the cost is a sum of squares, so var = 2σ²/curvature.
     let sigma2 = f0 / (2.0 * total as f64).max(1.0);
-    Some(EdgeShift { px: best, std_px: (2.0 * sigma2 / curvature).sqrt(), points, by_thickness: None, lean: None })
+    Some(EdgeShift {
+        px: best,
+        std_px: (2.0 * sigma2 / curvature).sqrt(),
+        points,
+        by_thickness: None,
+        lean: None,
+        bend: None,
+    })
 }
 
 /// Points further than [`TRIM_RMS`] times the solve's RMS from their reprojection are left
@@ -419,7 +484,7 @@ mod test {
     }
 
     #[test]
-    fn directions_are_unit_vectors_towards_the_next_window() {
+    fn directions_are_unit_vectors_towards_the_next_window_and_bends_grow_as_the_speed_squared() {
         let o = |x: f64| [x, 0.0, 0.0];
         let views = vec![
             View { object: vec![o(0.0), o(1.0)], image: vec![[10.0, 10.0], [20.0, 10.0]] },
@@ -441,6 +506,14 @@ mod test {
         assert!(close(&d[1], &[[1.0, 0.0]]), "{:?}", d[1]);
         assert!(close(&d[2], &[[1.0, 0.0], [0.0, 0.3]]), "one-sided, the next window is too far: {:?}", d[2]);
         assert!(close(&d[3], &[[0.0, 0.0]]), "the last window is a second later: no neighbour: {:?}", d[3]);
+        // The bend's: the same directions times (speed / 100 px/s)², the speed over the same
+        // neighbours: 4 px in 66 ms, and 0.3 px in 66 ms (one-sided at both ends).
+        let b = bend_directions(&views, &origins);
+        let q = |px: f64| (px / 0.066 / BEND_SPEED_PX_S).powi(2);
+        assert!(close(&b[0], &[[q(4.0), 0.0], [0.0, 0.3 * q(0.3)]]), "{:?}", b[0]);
+        assert!(close(&b[1], &[[q(4.0), 0.0]]), "{:?}", b[1]);
+        assert!(close(&b[2], &[[q(4.0), 0.0], [0.0, 0.3 * q(0.3)]]), "{:?}", b[2]);
+        assert!(close(&b[3], &[[0.0, 0.0]]), "{:?}", b[3]);
     }
 
     #[test]

@@ -109,7 +109,9 @@ pub struct SolveArgs {
     /// (slow, dim pixels smear thick edges more) and counts what that changes in each σ.
     /// Where a circle images as a slanted ellipse, the same late events also move its centre
     /// across the motion; the solve estimates how far (the lean, printed and in the JSON
-    /// result), moves the centres back by it and counts it in each σ.
+    /// result), moves the centres back by it and counts it in each σ. Slow pixels' lag also
+    /// bends with the speed (their delay shortens on faster edges): the part in the square
+    /// of each centre's speed is estimated, taken out and counted the same way (the bend).
     #[arg(long)]
     pub no_edge_shift: bool,
     /// Solve on each window's centres alone. By default each board point's centre in a view
@@ -468,6 +470,15 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             outln!(
                 "  and {:+.3} px across it on slanted outlines, in px of a shift at a fixed depth into the edge (the views ask for {:+.3} ± {:.3} px; events at a fixed depth lean by the shift, a pure delay by 0); counted in the σ below",
                 l.used_px,
+                l.px,
+                l.std_px
+            )?;
+        }
+        if let Some(l) = &s.bend {
+            outln!(
+                "  and {:+.3} px along it at {:.0} px/s, as the square of each one's speed: the lag's bend, as a slow pixel's delay shortens on faster edges (the views ask for {:+.3} ± {:.3} px; an ideal pixel's lag does not bend); counted in the σ below",
+                l.used_px,
+                evcal_host::views::edge_shift::BEND_SPEED_PX_S,
                 l.px,
                 l.std_px
             )?;
