@@ -93,7 +93,7 @@ pub struct Options {
     pub shift_directions: Vec<Vec<[f64; 2]>>,
     /// Further moves of the detected centres, each by one factor shared by all views: per
     /// move, per view, per point, its direction, as `shift_directions` (the edge shift's
-    /// lean across the motion on slanted outlines, and its curvature in the image speed;
+    /// lean across the motion on slanted outlines, and the lag's bend in the image speed;
     /// see [`crate::views::edge_shift`]). The solve reports how far along each the views
     /// would move the points ([`Calibration::moves`]), and each factor counts as one more
     /// parameter in the standard deviations. A move without one entry per view is left out.
@@ -947,10 +947,10 @@ mod test {
                 })
                 .collect()
         };
-        let (lean, curve) = (pattern(0.7, 2.3), pattern(1.9, 0.4));
+        let (lean, bend) = (pattern(0.7, 2.3), pattern(1.9, 0.4));
         let moved: Vec<View> = views
             .iter()
-            .zip(lean.iter().zip(&curve))
+            .zip(lean.iter().zip(&bend))
             .map(|(v, (a, b))| View {
                 object: v.object.clone(),
                 image: v
@@ -964,7 +964,7 @@ mod test {
         let plain = calibrate(&moved, [346, 260], &Options::default()).unwrap();
         assert!(plain.moves.is_empty());
         // A third move without one entry per view is left out.
-        let opts = Options { moves: vec![lean, vec![Vec::new()], curve], ..Options::default() };
+        let opts = Options { moves: vec![lean, vec![Vec::new()], bend], ..Options::default() };
         let cal = calibrate(&moved, [346, 260], &opts).unwrap();
         let [Some(a), None, Some(b)] = cal.moves[..] else { panic!("{:?}", cal.moves) };
         // The views ask to move the points back by what moved them.

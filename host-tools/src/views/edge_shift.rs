@@ -161,14 +161,16 @@ pub fn scaled_by_thickness(dirs: &[Vec<[f64; 2]>], spreads: &[&[f64]]) -> Option
     )
 }
 
-/// A point's step between its neighbouring windows: its displacement, px, and the seconds
-/// it took.
+/// A point's step between its neighbouring windows: its displacement, px, and its speed,
+/// px/s (see [`neighbour_steps`]).
 type Step = ([f64; 2], f64);
 
 /// Each point's step between its neighbouring windows: the displacement from where its
 /// board point was in the nearest earlier window that saw it (within
 /// [`MAX_NEIGHBOUR_GAP_S`]) to where it was in the nearest later one (one-sided at gaps),
-/// px, and the seconds between them; `None` where no neighbouring window saw it.
+/// px, and its speed: the slower of its two sides' (from the earlier window to this one,
+/// and from this one to the later), so that one neighbour paired with the wrong circle
+/// does not make it fast. `None` where no neighbouring window saw it.
 fn neighbour_steps(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<Option<Step>>> {
     let maps: Vec<_> = views.iter().map(View::by_board_point).collect();
     let near = |a: usize, b: usize| match (origins.get(a), origins.get(b)) {
@@ -187,13 +189,22 @@ fn neighbour_steps(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<Option<Ste
                     let seen = |j: usize| maps[j].get(&board_key(o)).map(|p| (*p, time(j)));
                     let prev = (0..k).rev().take_while(|&j| near(j, k)).find_map(seen);
                     let next = (k + 1..views.len()).take_while(|&j| near(j, k)).find_map(seen);
-                    let ((a, ta), (b, tb)) = match (prev, next) {
-                        (Some(a), Some(b)) => (a, b),
-                        (Some(a), None) => (a, (*here, time(k))),
-                        (None, Some(b)) => ((*here, time(k)), b),
+                    let this = (*here, time(k));
+                    let side = |(a, ta): ([f64; 2], f64), (b, tb): ([f64; 2], f64)| {
+                        let v = (b[0] - a[0]).hypot(b[1] - a[1]) / (tb - ta);
+                        if v.is_finite() {
+                            v
+                        } else {
+                            f64::INFINITY
+                        }
+                    };
+                    let ((a, _), (b, _), speed) = match (prev, next) {
+                        (Some(a), Some(b)) => (a, b, side(a, this).min(side(this, b))),
+                        (Some(a), None) => (a, this, side(a, this)),
+                        (None, Some(b)) => (this, b, side(this, b)),
                         (None, None) => return None,
                     };
-                    Some(([b[0] - a[0], b[1] - a[1]], tb - ta))
+                    Some(([b[0] - a[0], b[1] - a[1]], speed))
                 })
                 .collect()
         })
@@ -223,7 +234,7 @@ pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> 
 
 /// The directions of the lag's bend (see the module's note): each point's [`directions`]
 /// times the square of its image speed over [`BEND_SPEED_PX_S`], the speed from the same
-/// neighbouring windows; zero where they give none. A bend of `b` moves a point at that
+/// neighbouring windows (the slower of its two sides'); zero where they give none. A bend of `b` moves a point at that
 /// speed by `b` px.
 pub fn bend_directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
     neighbour_steps(views, origins)
@@ -231,7 +242,7 @@ pub fn bend_directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 
         .map(|v| {
             v.into_iter()
                 .map(|step| {
-                    let speed = step.map_or(0.0, |(d, dt)| d[0].hypot(d[1]) / dt);
+                    let speed = step.map_or(0.0, |(_, v)| v);
                     let q = if speed.is_finite() { (speed / BEND_SPEED_PX_S).powi(2) } else { 0.0 };
                     let d = direction_of(step);
                     [d[0] * q, d[1] * q]
@@ -507,13 +518,27 @@ mod test {
         assert!(close(&d[2], &[[1.0, 0.0], [0.0, 0.3]]), "one-sided, the next window is too far: {:?}", d[2]);
         assert!(close(&d[3], &[[0.0, 0.0]]), "the last window is a second later: no neighbour: {:?}", d[3]);
         // The bend's: the same directions times (speed / 100 px/s)², the speed over the same
-        // neighbours: 4 px in 66 ms, and 0.3 px in 66 ms (one-sided at both ends).
+        // neighbours, the slower side's: 2 px in 33 ms either side, and 0.3 px in 66 ms
+        // (one-sided at both ends).
         let b = bend_directions(&views, &origins);
         let q = |px: f64| (px / 0.066 / BEND_SPEED_PX_S).powi(2);
         assert!(close(&b[0], &[[q(4.0), 0.0], [0.0, 0.3 * q(0.3)]]), "{:?}", b[0]);
         assert!(close(&b[1], &[[q(4.0), 0.0]]), "{:?}", b[1]);
         assert!(close(&b[2], &[[q(4.0), 0.0], [0.0, 0.3 * q(0.3)]]), "{:?}", b[2]);
         assert!(close(&b[3], &[[0.0, 0.0]]), "{:?}", b[3]);
+    }
+
+    #[test]
+    fn a_neighbour_paired_with_the_wrong_circle_does_not_make_a_point_fast() {
+        let o = [0.0, 0.0, 0.0];
+        let at = |x: f64| View { object: vec![o], image: vec![[x, 10.0]] };
+        // 2 px in a window's 33 ms, then a jump of 40 px: another circle taken for it.
+        let views = vec![at(10.0), at(12.0), at(52.0)];
+        let origins: Vec<ViewOrigin> =
+            (0..3).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect();
+        let b = bend_directions(&views, &origins);
+        let slow = (2.0 / 0.033 / BEND_SPEED_PX_S).powi(2);
+        assert!((b[1][0][0] - slow).abs() < 1e-12 && b[1][0][1] == 0.0, "{:?}", b[1]);
     }
 
     #[test]
