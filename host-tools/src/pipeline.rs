@@ -378,7 +378,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let mut alternative = None;
     if setup.edge_shift {
         // Directions come from every view's neighbours, chosen or not.
-        let all = edge_shift::directions(&all_views, &views.origins);
+        let (all, bends) = edge_shift::directions_and_bends(&all_views, &views.origins);
         let dirs: Vec<Vec<[f64; 2]>> = selection.chosen.iter().map(|&i| all[i].clone()).collect();
         let spreads: Vec<&[f64]> =
             selection.chosen.iter().filter_map(|&i| views.spreads.get(i).map(|s| &s[..])).collect();
@@ -391,7 +391,6 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         if let Some(s) = edge_shift {
             used = edge_shift::shifted(&used, &dirs, s.px);
             shift_directions = dirs;
-            let bends = edge_shift::bend_directions(&all_views, &views.origins);
             bend_directions = selection.chosen.iter().map(|&i| bends[i].clone()).collect();
         }
     }

@@ -38,7 +38,7 @@
 //! simulator's dim cone at 300 Hz: 0.83, 1.52 and 1.85 px behind at 25, 75 and 125 px/s).
 //! Its constant part is `δ`; its part in proportion to the speed is a delay each view's pose
 //! takes up; the bend is what neither does. Taken as a term in the square of each point's
-//! speed ([`bend_directions`]), it is one more move the solve estimates from the views, as
+//! speed ([`directions_and_bends`]), it is one more move the solve estimates from the views, as
 //! the lean is, in px at [`BEND_SPEED_PX_S`]. An ideal pixel's lag does not bend.
 
 use crate::calib::{self, board_key, Intrinsics, Pose, View};
@@ -229,14 +229,18 @@ fn direction_of(step: Option<Step>) -> [f64; 2] {
 /// [`FULL_DIRECTION_PX`] of displacement; zero where no neighbouring window saw it.
 /// `views` and `origins` pair up, in time order.
 pub fn directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
-    neighbour_steps(views, origins).into_iter().map(|v| v.into_iter().map(direction_of).collect()).collect()
+    directions_and_bends(views, origins).0
 }
 
-/// The directions of the lag's bend (see the module's note): each point's [`directions`]
-/// times the square of its image speed over [`BEND_SPEED_PX_S`], the speed from the same
-/// neighbouring windows (the slower of its two sides'); zero where they give none. A bend of `b` moves a point at that
-/// speed by `b` px.
-pub fn bend_directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 2]>> {
+/// One image vector per point of each view, px.
+pub type PerPoint = Vec<Vec<[f64; 2]>>;
+
+/// Each point's [`directions`], and the directions of the lag's bend (see the module's
+/// note): the same directions times the square of the point's image speed over
+/// [`BEND_SPEED_PX_S`], the speed from the same neighbouring windows (the slower of its two
+/// sides'); zero where they give none. A bend of `b` moves a point at that speed by `b` px.
+/// Both from one pairing of the views' points, which is the costly part.
+pub fn directions_and_bends(views: &[View], origins: &[ViewOrigin]) -> (PerPoint, PerPoint) {
     neighbour_steps(views, origins)
         .into_iter()
         .map(|v| {
@@ -245,11 +249,11 @@ pub fn bend_directions(views: &[View], origins: &[ViewOrigin]) -> Vec<Vec<[f64; 
                     let speed = step.map_or(0.0, |(_, v)| v);
                     let q = if speed.is_finite() { (speed / BEND_SPEED_PX_S).powi(2) } else { 0.0 };
                     let d = direction_of(step);
-                    [d[0] * q, d[1] * q]
+                    (d, [d[0] * q, d[1] * q])
                 })
-                .collect()
+                .unzip()
         })
-        .collect()
+        .unzip()
 }
 
 /// Corners of the projected outline on which [`outline_response`] fits its conics.
@@ -506,7 +510,7 @@ mod test {
         let t = [0.0, 0.033, 0.066, 1.0];
         let origins: Vec<ViewOrigin> =
             t.iter().enumerate().map(|(k, &t_s)| ViewOrigin { window_seq: k as u64, t_s }).collect();
-        let d = directions(&views, &origins);
+        let (d, b) = directions_and_bends(&views, &origins);
         // The second point is missing from the window between: its neighbours are two apart.
         // It moved 0.3 px: below FULL_DIRECTION_PX, the direction is scaled down.
         let close = |a: &[[f64; 2]], b: &[[f64; 2]]| {
@@ -520,7 +524,6 @@ mod test {
         // The bend's: the same directions times (speed / 100 px/s)², the speed over the same
         // neighbours, the slower side's: 2 px in 33 ms either side, and 0.3 px in 66 ms
         // (one-sided at both ends).
-        let b = bend_directions(&views, &origins);
         let q = |px: f64| (px / 0.066 / BEND_SPEED_PX_S).powi(2);
         assert!(close(&b[0], &[[q(4.0), 0.0], [0.0, 0.3 * q(0.3)]]), "{:?}", b[0]);
         assert!(close(&b[1], &[[q(4.0), 0.0]]), "{:?}", b[1]);
@@ -536,7 +539,7 @@ mod test {
         let views = vec![at(10.0), at(12.0), at(52.0)];
         let origins: Vec<ViewOrigin> =
             (0..3).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect();
-        let b = bend_directions(&views, &origins);
+        let (_, b) = directions_and_bends(&views, &origins);
         let slow = (2.0 / 0.033 / BEND_SPEED_PX_S).powi(2);
         assert!((b[1][0][0] - slow).abs() < 1e-12 && b[1][0][1] == 0.0, "{:?}", b[1]);
     }
