@@ -119,6 +119,10 @@ pub struct Views {
     /// Per view, per point (as in `views`): how thick the circle's edge looked, the fit's
     /// spread of events about it, px ([`GridPoint::spread_px`](crate::views::grid::GridPoint::spread_px)). Empty: not known.
     pub spreads: Vec<Vec<f64>>,
+    /// Per view, per point (as in `views`): how many events its circle's fit used
+    /// ([`GridPoint::events`](crate::views::grid::GridPoint::events)), what the solve weighs
+    /// it by (`calib::Options::precision_hints`). Empty: not known.
+    pub events: Vec<Vec<u16>>,
     /// Per view: its grid was followed from the windows around it and holds fewer points
     /// than the finder asks of a grid of its own ([`FindOptions::min_fraction`]). Such a
     /// view is labelled right (its labels come from its neighbours), and its centres help
@@ -139,12 +143,14 @@ pub struct Views {
 }
 
 /// The grid of one window as a view, with points at the sensor's border left out; also
-/// how many were.
-pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, Vec<f64>, usize) {
+/// each point's spread and events (as [`Views::spreads`], [`Views::events`]) and how many
+/// points were left out.
+pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, Vec<f64>, Vec<u16>, usize) {
     let [w, h] = setup.image_size.map(f64::from);
     let m = setup.edge_margin_px;
     let mut view = View { object: Vec::with_capacity(grid.points.len()), image: Vec::with_capacity(grid.points.len()) };
     let mut spreads = Vec::with_capacity(grid.points.len());
+    let mut events = Vec::with_capacity(grid.points.len());
     let mut at_edge = 0;
     for p in &grid.points {
         let [u, v] = p.image;
@@ -157,8 +163,9 @@ pub fn view_of(grid: &GridDetection, setup: &Setup) -> (View, Vec<f64>, usize) {
         view.object.push(setup.pattern.object_point(p.index));
         view.image.push(p.image);
         spreads.push(p.spread_px);
+        events.push(p.events);
     }
-    (view, spreads, at_edge)
+    (view, spreads, events, at_edge)
 }
 
 /// Finds the grid in every window and makes views of it. `progress` is called with the
@@ -215,11 +222,12 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
                 if !partial {
                     radii.extend(radii_of(&g, &setup.pattern));
                 }
-                let (view, spreads, at_edge) = view_of(&g, setup);
+                let (view, spreads, events, at_edge) = view_of(&g, setup);
                 out.stats.points_at_edge += at_edge;
                 if view.object.len() >= needed {
                     out.views.push(view);
                     out.spreads.push(spreads);
+                    out.events.push(events);
                     out.origins.push(ViewOrigin { window_seq: u64::from(w.seq), t_s });
                     out.partial.push(partial);
                 } else {
@@ -397,6 +405,11 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     // Views of one stretch of the recording err alike; the σ printed must know it.
     let mut grouped = calib::Options {
         view_times: used_origins.iter().map(|o| o.t_s).collect(),
+        precision_hints: selection
+            .chosen
+            .iter()
+            .filter_map(|&i| views.events.get(i).map(|e| e.iter().map(|&n| f64::from(n)).collect()))
+            .collect(),
         shift_directions,
         ..setup.calib.clone()
     };

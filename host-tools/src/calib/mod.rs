@@ -110,6 +110,14 @@ pub struct Options {
     /// larger is reported. Empty (or not one per view): every point's error is taken as
     /// independent.
     pub view_times: Vec<f64>,
+    /// Per view (by index in the views given), per point: a figure that grows with how
+    /// precise the point is (for a circle's centre, the events its fit used). The robust
+    /// solve then weighs each point by the inverse of the square error that points of
+    /// about its figure show after the plain solve: the points, sorted by figure, in up to
+    /// 8 bins of equal count, each bin's median square error, a larger figure never taken
+    /// to err more. A centre fitted to few events errs more, and counting it as much as the
+    /// others costs precision. Empty, or not one figure per point: every point weighs alike.
+    pub precision_hints: Vec<Vec<f64>>,
 }
 
 impl Default for Options {
@@ -125,6 +133,7 @@ impl Default for Options {
             tolerance: 1e-12,
             circle_radius: None,
             view_times: Vec::new(),
+            precision_hints: Vec::new(),
             shift_directions: Vec::new(),
             moves: Vec::new(),
         }
@@ -537,16 +546,27 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
             break;
         }
         // Huber: beyond 2.5 σ a point weighs less, in proportion to its distance; beyond 5 σ
-        // it is a stray and weighs nothing (its centre says nothing about the camera).
+        // it is a stray and weighs nothing (its centre says nothing about the camera). Each
+        // weight times the point's precision, where the views say how precise it is.
         let (delta, stray) = (2.5 * sigma, 5.0 * sigma);
+        let hints: Option<Vec<&[f64]>> = kept
+            .iter()
+            .map(|&v| opts.precision_hints.get(v).filter(|h| h.len() == views[v].object.len()).map(|h| &h[..]))
+            .collect();
+        let precision = hints.and_then(|h| precision_weights(&errors, &h));
         weights = errors
             .iter()
-            .map(|e| {
+            .enumerate()
+            .map(|(j, e)| {
                 e.iter()
-                    .map(|&x| match x {
-                        x if x <= delta => 1.0,
-                        x if x <= stray => delta / x,
-                        _ => 0.0,
+                    .enumerate()
+                    .map(|(i, &x)| {
+                        let huber = match x {
+                            x if x <= delta => 1.0,
+                            x if x <= stray => delta / x,
+                            _ => 0.0,
+                        };
+                        huber * precision.as_ref().map_or(1.0, |p| p[j][i])
                     })
                     .collect()
             })
@@ -808,6 +828,90 @@ fn rms(e: &[f64]) -> f64 {
     (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt()
 }
 
+/// Most bins of [`precision_weights`].
+const PRECISION_BINS: usize = 8;
+/// Fewest points in a bin of [`precision_weights`]: the median of fewer square errors is
+/// itself too uncertain to weigh points by.
+const MIN_POINTS_PER_PRECISION_BIN: usize = 100;
+
+/// Per point of `errors` (per view, per point, px), a weight in inverse proportion to the
+/// square error of the points whose precision figures (`hints`, the same shape) are about
+/// its own: the points, sorted by figure, fall into up to [`PRECISION_BINS`] bins of equal
+/// count (points of one figure in one bin), each bin's square error is the median of its
+/// points' (strays do not count), and a larger figure is never taken to err more (the
+/// bins' errors are pooled where they would). Weights are 1 where a bin errs as all points
+/// do. `None` for too few points to tell bins apart, or errors that give no weight.
+fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option<Vec<Vec<f64>>> {
+    let mut points: Vec<(f64, f64)> = errors
+        .iter()
+        .zip(hints)
+        .flat_map(|(e, h)| h.iter().zip(e).map(|(&h, &x)| (h, x * x)))
+        .filter(|(h, x2)| h.is_finite() && x2.is_finite())
+        .collect();
+    let bins = PRECISION_BINS.min(points.len() / MIN_POINTS_PER_PRECISION_BIN);
+    if bins < 2 {
+        return None;
+    }
+    points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // Each bin's upper figure, so that equal figures share a bin.
+    let mut uppers: Vec<f64> = (1..bins).map(|b| points[b * points.len() / bins].0).collect();
+    uppers.dedup();
+    let bin_of = |h: f64| uppers.partition_point(|&u| u <= h);
+    let mut square: Vec<Vec<f64>> = vec![Vec::new(); uppers.len() + 1];
+    for &(h, x2) in &points {
+        square[bin_of(h)].push(x2);
+    }
+    // (median square error, points) per bin, pooled from the low figures up wherever a
+    // larger figure's bin errs more than a smaller one's.
+    let mut pooled: Vec<(f64, usize, usize)> = Vec::new();
+    for (b, s) in square.iter_mut().enumerate() {
+        if s.is_empty() {
+            continue;
+        }
+        let mut block = (median(s), s.len(), b);
+        while let Some(&(m, n, first)) = pooled.last() {
+            if m >= block.0 {
+                break;
+            }
+            pooled.pop();
+            block = ((m * n as f64 + block.0 * block.1 as f64) / (n + block.1) as f64, n + block.1, first);
+        }
+        pooled.push(block);
+    }
+    let mut all: Vec<f64> = points.iter().map(|p| p.1).collect();
+    let reference = median(&mut all);
+    let mut weight_of_bin = vec![1.0; square.len()];
+    for (k, &(m, _, first)) in pooled.iter().enumerate() {
+        let last = pooled.get(k + 1).map_or(square.len(), |p| p.2);
+        for w in &mut weight_of_bin[first..last] {
+            *w = reference / m;
+        }
+    }
+    if weight_of_bin.iter().any(|w| !w.is_finite() || *w <= 0.0) {
+        return None;
+    }
+    Some(
+        hints
+            .iter()
+            .map(|h| h.iter().map(|&h| if h.is_finite() { weight_of_bin[bin_of(h)] } else { 1.0 }).collect())
+            .collect(),
+    )
+}
+
+/// The median of `xs` (reordered); 0 for none.
+fn median(xs: &mut [f64]) -> f64 {
+    if xs.is_empty() {
+        return 0.0;
+    }
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
 /// Median and median absolute deviation.
 fn median_mad(x: &[f64]) -> (f64, f64) {
     if x.is_empty() {
@@ -898,6 +1002,78 @@ mod test {
 
     fn truth() -> Intrinsics {
         Intrinsics { fx: 352.4, fy: 351.1, cx: 171.3, cy: 128.6, k1: -0.31, k2: 0.12, p1: 4e-4, p2: -3e-4, k3: 0.0 }
+    }
+
+    #[test]
+    fn precision_weights_follow_the_error_of_points_alike_and_never_favour_a_noisier_figure() {
+        // 8 figures, 150 points each; points of figures 10 and 20 err three times as much.
+        let hints: Vec<Vec<f64>> = (0..8).map(|b| vec![10.0 * (b + 1) as f64; 150]).collect();
+        let errors = |err: &dyn Fn(usize) -> f64| -> Vec<Vec<f64>> {
+            (0..8).map(|b| (0..150).map(|i| err(b) * (0.8 + 0.4 * i as f64 / 150.0)).collect()).collect()
+        };
+        let h: Vec<&[f64]> = hints.iter().map(|h| &h[..]).collect();
+        let w = precision_weights(&errors(&|b| if b < 2 { 0.3 } else { 0.1 }), &h).expect("weights");
+        let ratio = w[0][0] / w[7][0];
+        assert!((ratio - 1.0 / 9.0).abs() < 0.01, "the noisy figures weigh a ninth: {ratio}");
+        assert!(w.iter().all(|v| v.iter().all(|&x| x == v[0])), "one weight per figure");
+        assert_eq!(w[0][0], w[1][0]);
+        assert_eq!(w[2][0], w[7][0]);
+        // Errors that grow with the figure say nothing the figure can be trusted for: the
+        // bins are pooled and every point weighs alike.
+        let w = precision_weights(&errors(&|b| 0.1 + 0.01 * b as f64), &h).expect("weights");
+        assert!(
+            w.iter().flatten().all(|&x| (x - w[0][0]).abs() < 1e-12),
+            "{:?}",
+            w.iter().map(|v| v[0]).collect::<Vec<_>>()
+        );
+        // Too few points to tell bins apart.
+        let few: Vec<&[f64]> = hints.iter().map(|h| &h[..20]).collect();
+        let few_errors: Vec<Vec<f64>> = errors(&|_| 0.1).iter().map(|e| e[..20].to_vec()).collect();
+        assert!(precision_weights(&few_errors, &few).is_none());
+    }
+
+    #[test]
+    fn points_the_hints_call_imprecise_weigh_less_and_the_solve_is_firmer() {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let t = truth();
+        let exact = synthetic_views(&t, 60, 0.0, 4);
+        // Every other point fitted to few events, six times as noisy.
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+        let (loose, firm) = (Normal::new(0.0, 0.6).unwrap(), Normal::new(0.0, 0.1).unwrap());
+        let mut hints = Vec::new();
+        let views: Vec<View> = exact
+            .iter()
+            .map(|v| {
+                hints.push((0..v.image.len()).map(|i| if i % 2 == 0 { 30.0 } else { 120.0 }).collect::<Vec<f64>>());
+                let image = v
+                    .image
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| {
+                        let n = if i % 2 == 0 { &loose } else { &firm };
+                        [p[0] + n.sample(&mut rng), p[1] + n.sample(&mut rng)]
+                    })
+                    .collect();
+                View { object: v.object.clone(), image }
+            })
+            .collect();
+        let plain = Options { fix_k3: true, ..Options::default() };
+        let weighed = Options { precision_hints: hints, ..plain.clone() };
+        let (a, b) = (calibrate(&views, [346, 260], &plain).unwrap(), calibrate(&views, [346, 260], &weighed).unwrap());
+        for (cal, what) in [(&a, "alike"), (&b, "weighed")] {
+            let errors = [
+                cal.intrinsics.fx - t.fx,
+                cal.intrinsics.fy - t.fy,
+                cal.intrinsics.cx - t.cx,
+                cal.intrinsics.cy - t.cy,
+            ];
+            for (i, e) in errors.iter().enumerate() {
+                assert!(e.abs() <= 3.0 * cal.std_dev[i], "{what}: parameter {i} off by {e}, σ {}", cal.std_dev[i]);
+            }
+        }
+        assert!(b.std_dev[0] < 0.6 * a.std_dev[0], "σ(fx) {} weighed against {} alike", b.std_dev[0], a.std_dev[0]);
+        assert!(b.std_dev[2] < 0.6 * a.std_dev[2], "σ(cx) {} weighed against {} alike", b.std_dev[2], a.std_dev[2]);
     }
 
     #[test]

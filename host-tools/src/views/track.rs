@@ -171,12 +171,13 @@ fn matched(
             .iter()
             .filter(|c| c.u.is_finite() && c.v.is_finite() && c.r.is_finite() && c.r > 0.0)
             .filter(|c| radius.is_none_or(|(median, tol)| (f64::from(c.r) / median - 1.0).abs() <= tol))
-            .map(|c| ([f64::from(c.u), f64::from(c.v)], f64::from(c.r), f64::from(c.spread)))
-            .map(|(q, r, sp)| (q, r, sp, (q[0] - p[0]).hypot(q[1] - p[1])))
-            .filter(|&(q, _, _, d)| d <= gate * s && within_bound(q))
-            .min_by(|a, b| a.3.total_cmp(&b.3));
-        if let Some((image, radius_px, spread_px, _)) = best {
-            points.push(GridPoint { index, image, radius_px, spread_px });
+            .map(|c| ([f64::from(c.u), f64::from(c.v)], c))
+            .map(|(q, c)| (q, c, (q[0] - p[0]).hypot(q[1] - p[1])))
+            .filter(|&(q, _, d)| d <= gate * s && within_bound(q))
+            .min_by(|a, b| a.2.total_cmp(&b.2));
+        if let Some((image, c, _)) = best {
+            let (radius_px, spread_px, events) = (f64::from(c.r), f64::from(c.spread), c.n);
+            points.push(GridPoint { index, image, radius_px, spread_px, events });
         }
     }
     points
@@ -393,7 +394,7 @@ mod test {
             points: pts
                 .iter()
                 .enumerate()
-                .map(|(index, &image)| GridPoint { index, image, radius_px: 5.0, spread_px: 0.1 })
+                .map(|(index, &image)| GridPoint { index, image, radius_px: 5.0, spread_px: 0.1, events: 60 })
                 .collect(),
             homography_rms_px: 0.0,
         }

@@ -71,6 +71,8 @@ pub struct GridPoint {
     pub radius_px: f64,
     /// How thick its edge looked: the fit's weighted spread of events about the circle, px.
     pub spread_px: f64,
+    /// How many events its fit used (a centre fitted to fewer events is less precise).
+    pub events: u16,
 }
 
 /// The grid found in one window.
@@ -150,6 +152,7 @@ struct Pt {
     p: [f64; 2],
     r: f64,
     spread: f64,
+    events: u16,
 }
 
 /// Most seeds tried before giving up.
@@ -167,7 +170,12 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
         .iter()
         .filter(|c| c.u.is_finite() && c.v.is_finite() && c.r.is_finite() && c.r > 0.0)
         .filter(|c| c.u.abs() < 1e6 && c.v.abs() < 1e6 && c.r < 1e6)
-        .map(|c| Pt { p: [f64::from(c.u), f64::from(c.v)], r: f64::from(c.r), spread: f64::from(c.spread) })
+        .map(|c| Pt {
+            p: [f64::from(c.u), f64::from(c.v)],
+            r: f64::from(c.r),
+            spread: f64::from(c.spread),
+            events: c.n,
+        })
         .collect();
     if pts.len() < needed {
         return Err(Miss::TooFewCentres);
@@ -203,7 +211,13 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
     check_smooth(&pts, &lattice)?;
     let mut points: Vec<GridPoint> = labels
         .iter()
-        .map(|&(index, k)| GridPoint { index, image: pts[k].p, radius_px: pts[k].r, spread_px: pts[k].spread })
+        .map(|&(index, k)| GridPoint {
+            index,
+            image: pts[k].p,
+            radius_px: pts[k].r,
+            spread_px: pts[k].spread,
+            events: pts[k].events,
+        })
         .collect();
     points.sort_by_key(|g| g.index);
     let homography_rms_px = homography_check(&points, pattern)?;

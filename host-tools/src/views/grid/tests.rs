@@ -351,8 +351,10 @@ fn blobs_over_circles_do_not_set_them_aside() {
         let circle = all[i].0;
         assert!(dist(b, [f64::from(circle.u), f64::from(circle.v)]) < 2.0 * r, "blob {k} over circle {i}");
     }
-    let pts: Vec<Pt> =
-        c.iter().map(|(x, _)| Pt { p: [f64::from(x.u), f64::from(x.v)], r: f64::from(x.r), spread: 0.3 }).collect();
+    let pts: Vec<Pt> = c
+        .iter()
+        .map(|(x, _)| Pt { p: [f64::from(x.u), f64::from(x.v)], r: f64::from(x.r), spread: 0.3, events: 60 })
+        .collect();
     let kept = consistency::consistent(&pts);
     for i in [5, 9] {
         let k = c.iter().position(|x| x.1 == Some(i)).unwrap();
