@@ -89,7 +89,8 @@ pub struct SolveArgs {
     #[arg(long)]
     pub fix_aspect_ratio: bool,
     /// Plain least squares, as OpenCV: no stray points set aside or down-weighted, no views
-    /// set aside.
+    /// set aside, every centre weighed alike (by default each weighs as precise as centres
+    /// fitted to as many events prove in the same run).
     #[arg(long)]
     pub no_robust: bool,
     /// Leave out a view whose points moved less than this (RMS, px) from a kept view. 0, the
