@@ -226,6 +226,19 @@ pub struct Calibration {
     /// kept views' times): the one the grouped σ came from, or with too few groups the
     /// shortest tried. `None` without times.
     pub sigma_group_s: Option<f64>,
+    /// How the points were weighed by their precision figures ([`Options::precision_hints`]),
+    /// bin by bin from the smallest figure up; empty when they were not (no figures, too
+    /// few points, or a plain solve).
+    pub precision_bins: Vec<PrecisionBin>,
+}
+
+/// A bin of points of about the same precision figure ([`Options::precision_hints`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PrecisionBin {
+    /// The smallest figure in the bin (the events of its centres' fits).
+    pub from: f64,
+    /// Each of its points' weight: the median square error of all points over the bin's.
+    pub weight: f64,
 }
 
 impl Calibration {
@@ -434,6 +447,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     let mut sol;
     let mut round = 0;
     let mut weighted = false;
+    let mut precision_bins = Vec::new();
     loop {
         let data: Vec<solve::ViewData> = kept
             .iter()
@@ -535,6 +549,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
             }
             (kept, poses) = next;
             weights = kept.iter().map(|&v| vec![1.0; views[v].object.len()]).collect();
+            precision_bins.clear();
             weighted = false;
             continue;
         }
@@ -554,6 +569,8 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
             .map(|&v| opts.precision_hints.get(v).filter(|h| h.len() == views[v].object.len()).map(|h| &h[..]))
             .collect();
         let precision = hints.and_then(|h| precision_weights(&errors, &h));
+        precision_bins = precision.as_ref().map_or(Vec::new(), |p| p.1.clone());
+        let precision = precision.map(|p| p.0);
         weights = errors
             .iter()
             .enumerate()
@@ -708,6 +725,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         moves: estimates,
         sigma_groups,
         sigma_group_s,
+        precision_bins,
     })
 }
 
@@ -840,8 +858,9 @@ const MIN_POINTS_PER_PRECISION_BIN: usize = 100;
 /// count (points of one figure in one bin), each bin's square error is the median of its
 /// points' (strays do not count), and a larger figure is never taken to err more (the
 /// bins' errors are pooled where they would). Weights are 1 where a bin errs as all points
-/// do. `None` for too few points to tell bins apart, or errors that give no weight.
-fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option<Vec<Vec<f64>>> {
+/// do. Also each bin, as [`Calibration::precision_bins`] gives them. `None` for too few
+/// points to tell bins apart, or errors that give no weight.
+fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option<(Vec<Vec<f64>>, Vec<PrecisionBin>)> {
     let mut points: Vec<(f64, f64)> = errors
         .iter()
         .zip(hints)
@@ -890,12 +909,15 @@ fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option<Vec<Vec<f6
     if weight_of_bin.iter().any(|w| !w.is_finite() || *w <= 0.0) {
         return None;
     }
-    Some(
-        hints
-            .iter()
-            .map(|h| h.iter().map(|&h| if h.is_finite() { weight_of_bin[bin_of(h)] } else { 1.0 }).collect())
-            .collect(),
-    )
+    let bins_used = (0..square.len())
+        .filter(|&b| !square[b].is_empty())
+        .map(|b| PrecisionBin { from: if b == 0 { points[0].0 } else { uppers[b - 1] }, weight: weight_of_bin[b] })
+        .collect();
+    let weights = hints
+        .iter()
+        .map(|h| h.iter().map(|&h| if h.is_finite() { weight_of_bin[bin_of(h)] } else { 1.0 }).collect())
+        .collect();
+    Some((weights, bins_used))
 }
 
 /// The median of `xs` (reordered); 0 for none.
@@ -1012,7 +1034,12 @@ mod test {
             (0..8).map(|b| (0..150).map(|i| err(b) * (0.8 + 0.4 * i as f64 / 150.0)).collect()).collect()
         };
         let h: Vec<&[f64]> = hints.iter().map(|h| &h[..]).collect();
-        let w = precision_weights(&errors(&|b| if b < 2 { 0.3 } else { 0.1 }), &h).expect("weights");
+        let (w, bins) = precision_weights(&errors(&|b| if b < 2 { 0.3 } else { 0.1 }), &h).expect("weights");
+        assert_eq!(
+            bins.iter().map(|b| b.from).collect::<Vec<_>>(),
+            (1..=8).map(|b| 10.0 * b as f64).collect::<Vec<_>>()
+        );
+        assert_eq!(bins[0].weight, w[0][0]);
         let ratio = w[0][0] / w[7][0];
         assert!((ratio - 1.0 / 9.0).abs() < 0.01, "the noisy figures weigh a ninth: {ratio}");
         assert!(w.iter().all(|v| v.iter().all(|&x| x == v[0])), "one weight per figure");
@@ -1020,7 +1047,7 @@ mod test {
         assert_eq!(w[2][0], w[7][0]);
         // Errors that grow with the figure say nothing the figure can be trusted for: the
         // bins are pooled and every point weighs alike.
-        let w = precision_weights(&errors(&|b| 0.1 + 0.01 * b as f64), &h).expect("weights");
+        let (w, _) = precision_weights(&errors(&|b| 0.1 + 0.01 * b as f64), &h).expect("weights");
         assert!(
             w.iter().flatten().all(|&x| (x - w[0][0]).abs() < 1e-12),
             "{:?}",
@@ -1072,6 +1099,8 @@ mod test {
                 assert!(e.abs() <= 3.0 * cal.std_dev[i], "{what}: parameter {i} off by {e}, σ {}", cal.std_dev[i]);
             }
         }
+        assert!(a.precision_bins.is_empty() && b.precision_bins.len() == 2, "{:?}", b.precision_bins);
+        assert!(b.precision_bins[0].weight < b.precision_bins[1].weight / 10.0, "{:?}", b.precision_bins);
         assert!(b.std_dev[0] < 0.6 * a.std_dev[0], "σ(fx) {} weighed against {} alike", b.std_dev[0], a.std_dev[0]);
         assert!(b.std_dev[2] < 0.6 * a.std_dev[2], "σ(cx) {} weighed against {} alike", b.std_dev[2], a.std_dev[2]);
     }

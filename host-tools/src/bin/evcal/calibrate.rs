@@ -518,6 +518,18 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             c.rms_all_px
         )?;
     }
+    if let (Some(first), Some(last)) = (c.precision_bins.first(), c.precision_bins.last()) {
+        if (last.weight / first.weight - 1.0).abs() < 1e-9 {
+            outln!("  every centre weighed alike: centres fitted to more events err no less in this recording")?;
+        } else {
+            let bins: Vec<String> =
+                c.precision_bins.iter().map(|b| format!("{:.0}+ ×{:.2}", b.from, b.weight)).collect();
+            outln!(
+                "  each centre weighed as precise as centres fitted to as many events are here (events: weight): {}",
+                bins.join(", ")
+            )?;
+        }
+    }
     let est = c.intrinsics.to_array();
     match truth {
         Some(t) => {
