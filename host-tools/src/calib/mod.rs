@@ -34,7 +34,7 @@ pub use k3::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 pub use model::{outline_offset, Intrinsics, Pose, PARAMETER_NAMES};
 
 use nalgebra::{Rotation3, Vector3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// One view of the target: board points (metres, on the plane z = 0) and where they were seen
@@ -233,7 +233,7 @@ pub struct Calibration {
 }
 
 /// A bin of points of about the same precision figure ([`Options::precision_hints`]).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct PrecisionBin {
     /// The smallest figure in the bin (the events of its centres' fits).
     pub from: f64,

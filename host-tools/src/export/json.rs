@@ -3,11 +3,11 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed`.
+//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
-use crate::calib::{Calibration, Intrinsics};
+use crate::calib::{Calibration, Intrinsics, PrecisionBin};
 use crate::views::ViewOrigin;
 use serde::{Deserialize, Serialize};
 
@@ -90,6 +90,13 @@ pub struct ResultJson {
     /// `null` for a calibration. A program reading the file should check it.
     #[serde(default)]
     pub calibration_failed: Option<String>,
+    /// How the solve weighed each centre by the events its fit had, bin by bin from the
+    /// fewest events up (`from`: the fewest events in the bin; `weight`: each of its points'
+    /// weight, the median square error of all points over the bin's); empty when every
+    /// centre weighed alike for want of figures or points, or in a plain solve
+    /// (`--no-robust`). All weights equal: centres fitted to more events erred no less.
+    #[serde(default)]
+    pub precision_bins: Vec<PrecisionBin>,
 }
 
 /// Reads `std_dev` back: JSON has no infinity, so `serde_json` writes an unbounded σ as
@@ -209,6 +216,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         edge_shift: None,
         circle_radius_m: cal.circle_radius_m,
         calibration_failed: None,
+        precision_bins: cal.precision_bins.clone(),
     })
 }
 
@@ -324,6 +332,25 @@ mod test {
         assert_eq!(back.views_used, json.views_used);
         assert_eq!(back.rejected, json.rejected);
         assert_eq!(back.warnings, json.warnings);
+    }
+
+    #[test]
+    fn the_centres_weights_are_written_and_a_file_without_them_reads_as_weighed_alike() {
+        let (views, mut cal, origins, _) = setup(&TRUTH, false);
+        cal.precision_bins = vec![PrecisionBin { from: 20.0, weight: 0.25 }, PrecisionBin { from: 96.0, weight: 1.5 }];
+        let counts = RunCounts { windows: views.len() as u64, detections: views.len() as u64 };
+        let text = serde_json::to_string(&result_json(&cal, &origins, counts).unwrap()).unwrap();
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(v["precision_bins"][1]["from"], 96.0, "{text}");
+        assert_eq!(v["precision_bins"][0]["weight"], 0.25, "{text}");
+        let back: ResultJson = serde_json::from_str(&text).unwrap();
+        assert_eq!(back.precision_bins, cal.precision_bins);
+
+        // A file written before the key existed.
+        let mut old: serde_json::Value = serde_json::from_str(&text).unwrap();
+        old.as_object_mut().unwrap().remove("precision_bins");
+        let back: ResultJson = serde_json::from_value(old).unwrap();
+        assert!(back.precision_bins.is_empty());
     }
 
     #[test]
