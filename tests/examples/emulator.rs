@@ -21,14 +21,19 @@
 //! of the same names do; `--trail-filter-ms T` drops every event whose pixel fired the same
 //! polarity less than T ms before (a burst or "trail" filter, as some sensors offer on chip:
 //! it keeps the onset of each edge's burst and drops the slow settling behind it; this is a
-//! measurement, evcal does not filter so).
+//! measurement, evcal does not filter so). `--span A-B` keeps only the events from A to B
+//! seconds after the recording's first: a shorter recording of the same kind, to see whether
+//! the printed σ still covers the error when there is less to go on.
+//!
+//! A row whose σ leaves the camera unfixed (`evcal calibrate` then says the calibration
+//! failed, exits with status 3 and marks its files) is named "(no calibration)".
 
 use evcal_core::event::{Event, SensorSize};
 use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
     input::detections::{self, read_jsonl, WindowRecord},
     input::recording::{ReadError, Recording},
-    pipeline::{calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Outcome, Setup},
+    pipeline::{calibrate_views, disc_fallback_rejects, no_calibration, verdict, views_from_windows, Outcome, Setup},
 };
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
@@ -227,12 +232,32 @@ struct Experiment {
     events_per_window: Option<usize>,
     step_ms: Option<f64>,
     trail_filter_ms: Option<f64>,
+    span_s: Option<(f64, f64)>,
 }
 
 impl Experiment {
     fn any(&self) -> bool {
-        self.events_per_window.is_some() || self.step_ms.is_some() || self.trail_filter_ms.is_some()
+        self.events_per_window.is_some()
+            || self.step_ms.is_some()
+            || self.trail_filter_ms.is_some()
+            || self.span_s.is_some()
     }
+}
+
+/// The events from `from` to `to` seconds after the first event (errors pass through).
+fn within(
+    events: impl Iterator<Item = Result<Event, ReadError>>,
+    (from, to): (f64, f64),
+) -> impl Iterator<Item = Result<Event, ReadError>> {
+    let mut first = None;
+    events.filter(move |e| match e {
+        Ok(e) => {
+            let t0 = *first.get_or_insert(e.t_us);
+            let s = e.t_us.saturating_sub(t0) as f64 * 1e-6;
+            (from..to).contains(&s)
+        }
+        Err(_) => true,
+    })
 }
 
 /// Drops each event whose pixel fired the same polarity less than `ms` before (any event of
@@ -285,9 +310,13 @@ fn windows_of(
     if let Some(ms) = x.step_ms {
         cfg.window.step_us = (ms * 1e3).round() as u64;
     }
-    let events: Box<dyn Iterator<Item = Result<Event, ReadError>>> = match x.trail_filter_ms {
-        Some(ms) => Box::new(trail_filter(rec, sensor, ms)),
+    let events: Box<dyn Iterator<Item = Result<Event, ReadError>>> = match x.span_s {
+        Some(span) => Box::new(within(rec, span)),
         None => Box::new(rec),
+    };
+    let events: Box<dyn Iterator<Item = Result<Event, ReadError>>> = match x.trail_filter_ms {
+        Some(ms) => Box::new(trail_filter(events, sensor, ms)),
+        None => events,
     };
     detections::run(events, cfg, |d| windows.push(WindowRecord::from_detection(d))).unwrap_or_else(|e| {
         eprintln!("{}: {e}", path.display());
@@ -324,6 +353,19 @@ fn main() {
         Some(p)
     };
     let (cache, truth_file) = (path("--detections", "a folder"), path("--truth", "a file"));
+    let span_s = args.iter().position(|a| a == "--span").map(|i| {
+        let span = args.get(i + 1).and_then(|v| {
+            let (a, b) = v.split_once('-')?;
+            let (a, b) = (a.parse::<f64>().ok()?, b.parse::<f64>().ok()?);
+            (a.is_finite() && b.is_finite() && 0.0 <= a && a < b).then_some((a, b))
+        });
+        let Some(span) = span else {
+            eprintln!("--span needs FROM-TO in seconds, FROM < TO (e.g. 0-4)");
+            std::process::exit(2);
+        };
+        args.drain(i..i + 2);
+        span
+    });
     let mut value = |name: &str| -> Option<f64> {
         let i = args.iter().position(|a| a == name)?;
         let v = args.get(i + 1).and_then(|v| v.parse::<f64>().ok()).filter(|v| v.is_finite() && *v > 0.0);
@@ -335,6 +377,7 @@ fn main() {
         Some(v)
     };
     let experiment = Experiment {
+        span_s,
         events_per_window: value("--events-per-window").map(|v| v as usize),
         step_ms: value("--step-ms"),
         trail_filter_ms: value("--trail-filter-ms"),
@@ -344,7 +387,7 @@ fn main() {
     if args.is_empty() {
         eprintln!(
             "usage: emulator [--detections DIR] [--truth FILE] [--diagnose] [--no-edge-shift] [--no-smoothing] \
-             [--events-per-window N] [--step-ms MS] [--trail-filter-ms T] RECORDING_DIR..."
+             [--events-per-window N] [--step-ms MS] [--trail-filter-ms T] [--span FROM-TO] RECORDING_DIR..."
         );
         std::process::exit(2);
     }
@@ -393,6 +436,9 @@ fn main() {
             }
         };
         let c = &out.calibration;
+        if verdict(c).is_some() {
+            name += " (no calibration)";
+        }
         let e = errors(&c.intrinsics, &k);
         let sd = [100.0 * c.std_dev[0] / k.fx, 100.0 * c.std_dev[1] / k.fy, c.std_dev[2], c.std_dev[3]];
         let sig: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / sd[i])).collect();
