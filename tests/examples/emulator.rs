@@ -895,6 +895,46 @@ fn diagnose_run(truth: &Truth, k: &Intrinsics, windows: &[WindowRecord], out: &O
         (sums[3] / n).sqrt()
     );
     {
+        // What the views allow at the centres' own noise: the truth at each view's delay plus
+        // independent noise as large as the detected residual (along and across the motion
+        // apart), solved over 16 draws. Real errors are not independent (they persist over
+        // neighbouring windows), so this spread is the least a centre this noisy can give.
+        use rand::{RngExt, SeedableRng};
+        let (sd_along, sd_across) = ((sums[1] / n).sqrt(), (sums[3] / n).sqrt());
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(16);
+        let mut gauss = || {
+            let (a, b) = (rng.random::<f64>().max(1e-300), rng.random::<f64>());
+            (-2.0 * a.ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+        };
+        let mut draws = Vec::new();
+        for _ in 0..16 {
+            let mut noisy = delayed.clone();
+            let mut j = 0;
+            for v in noisy.iter_mut() {
+                for p in v.image.iter_mut() {
+                    let ([ux, uy], _) = motion[j];
+                    j += 1;
+                    let (a, c) = (sd_along * gauss(), sd_across * gauss());
+                    *p = [p[0] + a * ux - c * uy, p[1] + a * uy + c * ux];
+                }
+            }
+            if let Ok(e) = solve(&noisy, &plain) {
+                draws.push(e);
+            }
+        }
+        let m = draws.len().max(1) as f64;
+        let stat = |i: usize| {
+            let mean = draws.iter().map(|e| e[i]).sum::<f64>() / m;
+            let sd = (draws.iter().map(|e| (e[i] - mean).powi(2)).sum::<f64>() / (m - 1.0).max(1.0)).sqrt();
+            (mean, sd)
+        };
+        let ((fx_mean, fx_sd), (cx_mean, cx_sd)) = (stat(0), stat(2));
+        println!(
+            "    truth at the delay plus independent noise of the residual's size ({sd_along:.3} px along, {sd_across:.3} across), {} draws: fx {fx_mean:+.3} ± {fx_sd:.3} %, cx {cx_mean:+.2} ± {cx_sd:.2} px",
+            draws.len()
+        );
+    }
+    {
         // Only the mean of the across-motion residual: a constant shift to one side of the
         // motion, as a curved path or a lag that is not symmetric about the motion would give.
         let mean_c = sums[2] / n;
