@@ -21,7 +21,7 @@
 //! of the same names do; `--trail-filter-ms T` drops every event whose pixel fired the same
 //! polarity less than T ms before (a burst or "trail" filter, as some sensors offer on chip:
 //! it keeps the onset of each edge's burst and drops the slow settling behind it; this is a
-//! measurement, evcal does not filter so). `--span A-B` keeps only the events from A to B
+//! measurement, evcal does not filter so). `--span FROM-TO` keeps only the events from FROM to TO
 //! seconds after the recording's first: a shorter recording of the same kind, to see whether
 //! the printed σ still covers the error when there is less to go on.
 //!
