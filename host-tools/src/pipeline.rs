@@ -528,7 +528,7 @@ fn focal_warning(cal: &Calibration, coverage: &Coverage, lag: Option<&[f64; 9]>)
         let tilt = crate::views::select::TiltSpread::of(cal);
         let fix = if tilt.max_deg < crate::views::select::GOOD_TILT_DEG {
             format!(
-                "the views tilt the target by at most {:.0}°: with little tilt the focal length is told apart from the distance only by how the image grows as the target comes nearer. Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
+                "the views tilt the target by at most {:.0}°: only tilt tells the focal length from the distance (a target facing the sensor looks the same to a focal length twice as long from twice as far, its distortion rescaled to match, however near it comes). Record a cone: tilt the target 20–40° towards each side in turn while it sweeps the sensor",
                 tilt.max_deg
             )
         } else {
