@@ -15,7 +15,7 @@ use std::process::Command;
 /// discs in their place): about four minutes of CPU for some 50 views. Not 3 s: a few
 /// seconds of discs give 10–16 views, and their focal length is a draw, measured over seeds
 /// 5–7 at −0.2 … −1.7 % with 15 000-event windows and −1.4 … −2.3 % with 27 500
-/// (docs/accuracy.md, "Filled discs in windows of the DAVIS346's duration").
+/// (docs/notes/sweep.md, "Filled discs in windows of the DAVIS346's duration").
 const SECONDS: f64 = 5.0;
 
 #[test]

@@ -87,8 +87,8 @@ fn student_t_quantile(tail: f64, nu: f64) -> f64 {
 /// of the recording, or when the grid was seen in bursts (dim discs on part of a cone: the
 /// views of 5 s in 5 half-seconds). Without groups the σ would take every point's error as
 /// independent: on 3 s of a simulated cone that σ left the error of fy beyond 3σ in 5 of 8
-/// seeds, and on 5 s of dim discs cy 5σ off (docs/accuracy.md, "Short recordings", "Views
-/// seen in bursts").
+/// seeds, and on 5 s of dim discs cy 5σ off (docs/notes/solve.md, "Short recordings",
+/// "Views seen in bursts").
 pub fn group_seconds(times: &[f64]) -> f64 {
     let (lo, hi) = times.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &t| (lo.min(t), hi.max(t)));
     let span = hi - lo;
@@ -135,11 +135,11 @@ pub fn groups_of(times: &[f64], group_s: f64, lead: f64) -> (Vec<u32>, usize) {
 /// How many placements of the groups' bounds the grouped σ averages over: the first group
 /// led by 0, ¼, ½ and ¾ of a stretch ([`groups_of`]). A σ from one placement is itself an
 /// estimate from some sixteen sums, and which placement is arbitrary: on the simulator's
-/// sweep moving the bounds alone moved σ(fx) by up to a quarter (docs/accuracy.md, "Views
-/// seen in bursts"). Averaging the placements' covariances, as overlapping batch means do
-/// (Meketon and Schmeiser 1984), keeps what each says and less of its chance. Where the
-/// views make fewer than [`GROUPS_WANTED`] groups, only the first placement is used: a led
-/// one may cut a burst of views in two.
+/// sweep moving the bounds alone moved σ(fx) by up to a quarter (docs/notes/solve.md,
+/// "Views seen in bursts"). Averaging the placements' covariances, as overlapping batch
+/// means do (Meketon and Schmeiser 1984), keeps what each says and less of its chance. Where
+/// the views make fewer than [`GROUPS_WANTED`] groups, only the first placement is used: a
+/// led one may cut a burst of views in two.
 pub const GROUP_PLACEMENTS: usize = 4;
 
 #[cfg(test)]

@@ -94,7 +94,7 @@ fn scaled_events_per_window(sensor: SensorSize, power: f64) -> usize {
 /// different part of each disc's late events depending on how fast the circle moves (the
 /// reason the host's windows are twice the paper's, [`HOST_EVENTS_PER_WINDOW`]). The area
 /// keeps the DAVIS346's window duration. Measured on a simulated DVXplorer's dim cone at a
-/// 300 Hz photoreceptor (docs/accuracy.md, "Filled discs in windows of the DAVIS346's
+/// 300 Hz photoreceptor (docs/notes/sweep.md, "Filled discs in windows of the DAVIS346's
 /// duration"): with 15 000 events a window lasts 5.8 ms, and the discs' lag along the
 /// motion varies with the circle's speed beyond what a view's pose takes; over seeds 5–8,
 /// fx +0.181, +0.368, +0.077, +0.258 % and cx +1.37, +0.20, +1.32, +2.43 px in windows of

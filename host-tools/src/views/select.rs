@@ -34,7 +34,7 @@ impl Default for SelectOptions {
         // its motion fills. Leaving out the windows that moved less than 2 px (the default
         // until 2026-12) dropped two thirds of the slow cones' windows and their
         // information: on the independent emulator's dim cone σ(fx) 0.154 → 0.130 % and
-        // fx −0.228 → −0.170 % with all kept (docs/accuracy.md). The standard deviations
+        // fx −0.228 → −0.170 % with all kept (docs/notes/pipeline.md). The standard deviations
         // count neighbouring windows as one group (`calib::group_seconds`), so keeping
         // them all does not feign independence that smoothing took away. 500 views solve in
         // seconds; longer recordings are thinned evenly.
