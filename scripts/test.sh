@@ -11,8 +11,9 @@ times=()
 step_end() { [ -n "${step_name:-}" ] && times+=("$(printf '%5d s  %s' $((SECONDS - step_t0)) "$step_name")"); return 0; }
 step() { step_end; step_name="$*"; step_t0=$SECONDS; echo; echo "=== $*"; }
 
-step "format"
+step "format; documentation links (every relative link and anchor in README, CHANGELOG, docs/)"
 cargo fmt --all -- --check
+python3 scripts/check-doc-links.py
 
 step "clippy (host crates, all targets)"
 cargo clippy --workspace --all-targets -- -D warnings
