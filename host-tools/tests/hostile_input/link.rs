@@ -157,8 +157,8 @@ fn a_stream_copied_to_a_temporary_file_leaves_nothing_when_interrupted() {
         signal(&child, sig);
         let status = wait_at_most(&mut child, Duration::from_secs(3)).expect("ends on the signal");
         drop(stdin);
-        assert_eq!(status.code(), Some(130), "{sig}");
         assert_eq!(files_in(tmp.path()), Vec::<String>::new(), "{sig}: the copy is removed");
+        assert_eq!(status.code(), Some(130), "{sig}");
     }
 }
 
