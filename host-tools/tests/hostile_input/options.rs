@@ -258,3 +258,34 @@ proptest! {
         prop_assert!(r.is_ok(), "{}", r.unwrap_err());
     }
 }
+
+#[test]
+fn refusals_say_the_range_and_why() {
+    // Before: "--connect-timeout inf" was "must be a non-negative number"; --radius 1e-300
+    // and --step-ms 1e300 were taken silently.
+    let dir = inputs();
+    let det = dir.path().join("det.jsonl");
+    let rec = fixture("events.txt");
+    let cal = ["calibrate", s(&det), "--sensor", "346x260", "--pattern", "4x11", "--spacing", "0.024"];
+    for (args, code, said) in [
+        (
+            &["replay", s(&rec), "--port", "tcp:127.0.0.1:9", "--connect-timeout", "inf"][..],
+            2,
+            &["--connect-timeout", "not a finite number", "from 0 to 31536000", "a year"][..],
+        ),
+        (&["collect", "--port", "tcp:127.0.0.1:9", "--seconds", "1e300"], 2, &["--seconds", "out of range"]),
+        (&["detect", s(&rec), "--step-ms", "1e300"], 2, &["--step-ms", "from 0 to 60000", "a minute"]),
+        (&["detect", s(&rec), "--eps", "1e-300"], 2, &["--eps", "from 0.0001 to 0.5"]),
+        (&[&cal[..], &["--radius", "1e-300"]].concat(), 1, &["--radius 1e-300:", "0.0012 m", "a twentieth"]),
+        (&[&cal[..], &["--radius", "0.02"]].concat(), 1, &["below 0.0170 m", "overlap"]),
+        (&["simulate", "-o", "x.txt", "--leak-hz", "1e4"], 2, &["--leak-hz", "from 0 to 100"]),
+    ] {
+        let o = evcal_command().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {err}");
+        for s in said {
+            assert!(err.contains(s), "{args:?}: {s:?} in {err}");
+        }
+        assert!(!err.contains("00000000000000000000"), "no long numbers quoted back: {err}");
+    }
+}

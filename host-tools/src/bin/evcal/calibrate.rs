@@ -181,46 +181,6 @@ fn is_detections(path: &Path) -> Result<bool> {
     Ok(head[..n].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
 }
 
-/// The printed boards spacings lie between (metres): a spacing outside is a wrong unit or a
-/// typo, and the views it gives fail far from where it was given.
-const SPACING_RANGE: std::ops::RangeInclusive<f64> = 0.001..=1.0;
-
-/// Checks `--spacing` for a plausible length in metres.
-pub fn check_spacing(spacing: f64) -> Result<()> {
-    if !SPACING_RANGE.contains(&spacing) {
-        let hint = if (1.0..=1000.0).contains(&spacing) {
-            format!(": metres, not millimetres? ({spacing} mm is --spacing {})", spacing * 1e-3)
-        } else {
-            String::new()
-        };
-        bail!(
-            "--spacing {}: a printed board's circle spacing is {} to {} m{hint}",
-            ranges::number(spacing),
-            SPACING_RANGE.start(),
-            SPACING_RANGE.end()
-        );
-    }
-    Ok(())
-}
-
-/// The printed circles' radii lie above this share of the spacing: a smaller one is a wrong
-/// unit (millimetres for metres: a thousandth) or a typo, and a board of such dots would
-/// image them a pixel or two across, too small to fit.
-const RADIUS_MIN_SHARE: f64 = 0.05;
-
-/// Checks `--radius` against the spacing: a circle a few pixels across at the least, and
-/// below half the diagonal spacing, where neighbouring circles would overlap.
-pub fn check_radius(radius: f64, spacing: f64) -> Result<()> {
-    let (lo, hi) = (RADIUS_MIN_SHARE * spacing, 0.5 * spacing * std::f64::consts::SQRT_2);
-    if !(radius.is_finite() && radius >= lo && radius < hi) {
-        let (radius, spacing) = (ranges::number(radius), ranges::number(spacing));
-        bail!(
-            "--radius {radius}: with --spacing {spacing} a printed circle's radius is from {lo:.4} m (a twentieth of the spacing; smaller dots image too few pixels across to fit) to below {hi:.4} m (half the diagonal spacing, where neighbours would overlap)"
-        );
-    }
-    Ok(())
-}
-
 /// Checks that the outputs can be written, before any work.
 pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
     if out.exists() && !out.is_dir() {
@@ -234,9 +194,9 @@ pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
-    check_spacing(a.target.spacing)?;
+    ranges::check_spacing(a.target.spacing)?;
     if let Some(r) = a.target.radius {
-        check_radius(r, a.target.spacing)?;
+        ranges::check_radius(r, a.target.spacing)?;
     }
     check_outputs(&a.out, a.json.as_deref())?;
     let from_events = !is_detections(&a.input)?;

@@ -20,7 +20,8 @@ pub struct DeviceArgs {
     pub sensor: String,
     /// Seconds a host may send nothing (while the device has nothing to do) or leave unread
     /// what the device sends, before it is dropped and the device freed for the next; 0.1 to
-    /// a year. A replay speaks many times a second; a silent host is gone or hung.
+    /// a year. A replay sends as fast as the device takes its frames: a host silent that long
+    /// is gone or hung.
     #[arg(long, default_value = "30", value_name = "SECONDS", value_parser = ranges::idle,
           allow_negative_numbers = true)]
     pub idle_timeout: Duration,

@@ -2,6 +2,7 @@
 //! command line, so that a mistake is said before any work, with the range and why, and no
 //! value reaches a conversion that cannot take it (`Duration::from_secs_f64(1e300)` panics).
 
+use anyhow::{bail, Result};
 use std::{ops::RangeInclusive, time::Duration};
 
 /// A range of an option's values, the unit they are in and why the range ends where it does.
@@ -297,4 +298,46 @@ pub const WINDOWS: Count = Count { values: 1..=u64::MAX, what: "windows", why: "
 /// Windows to collect; see [`WINDOWS`].
 pub fn windows(s: &str) -> Result<u64, String> {
     WINDOWS.parse(s)
+}
+
+// The target's sizes are checked together, after parsing: the radius's range is the spacing's.
+
+/// The printed boards spacings lie between (metres): a spacing outside is a wrong unit or a
+/// typo, and the views it gives fail far from where it was given.
+const SPACING_RANGE: std::ops::RangeInclusive<f64> = 0.001..=1.0;
+
+/// Checks `--spacing` for a plausible length in metres.
+pub fn check_spacing(spacing: f64) -> Result<()> {
+    if !SPACING_RANGE.contains(&spacing) {
+        let hint = if (1.0..=1000.0).contains(&spacing) {
+            format!(": metres, not millimetres? ({spacing} mm is --spacing {})", spacing * 1e-3)
+        } else {
+            String::new()
+        };
+        bail!(
+            "--spacing {}: a printed board's circle spacing is {} to {} m{hint}",
+            number(spacing),
+            SPACING_RANGE.start(),
+            SPACING_RANGE.end()
+        );
+    }
+    Ok(())
+}
+
+/// The printed circles' radii lie above this share of the spacing: a smaller one is a wrong
+/// unit (millimetres for metres: a thousandth) or a typo, and a board of such dots would
+/// image them a pixel or two across, too small to fit.
+const RADIUS_MIN_SHARE: f64 = 0.05;
+
+/// Checks `--radius` against the spacing: a circle a few pixels across at the least, and
+/// below half the diagonal spacing, where neighbouring circles would overlap.
+pub fn check_radius(radius: f64, spacing: f64) -> Result<()> {
+    let (lo, hi) = (RADIUS_MIN_SHARE * spacing, 0.5 * spacing * std::f64::consts::SQRT_2);
+    if !(radius.is_finite() && radius >= lo && radius < hi) {
+        let (radius, spacing) = (number(radius), number(spacing));
+        bail!(
+            "--radius {radius}: with --spacing {spacing} a printed circle's radius is from {lo:.4} m (a twentieth of the spacing; smaller dots image too few pixels across to fit) to below {hi:.4} m (half the diagonal spacing, where neighbours would overlap)"
+        );
+    }
+    Ok(())
 }
