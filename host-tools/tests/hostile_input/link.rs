@@ -193,7 +193,7 @@ fn a_device_held_by_a_silent_host_turns_others_away_then_drops_it() {
     let mut rest = Vec::new();
     silent.read_to_end(&mut rest).expect("the device closes the connection");
     let held = connected.elapsed();
-    assert!(held >= Duration::from_millis(1400) && held < Duration::from_secs(3), "{held:?}");
+    assert!(held >= Duration::from_millis(1400) && held < Duration::from_secs(4), "{held:?}");
     assert!(!rest.is_empty(), "the device said Hello first");
     assert!(dev.wait_for("dropped: silent for 1.5 s", Duration::from_secs(1)).is_some());
 
