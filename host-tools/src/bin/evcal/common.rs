@@ -90,10 +90,12 @@ pub struct CoreArgs {
     pub events_per_window: Option<u32>,
     /// Milliseconds of event time between window ticks (the paper: 33); 0 (windows back to
     /// back) to 60000.
-    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms,
+          allow_negative_numbers = true)]
     pub step_ms: f64,
     /// DBSCAN radius, in coordinates normalised by the sensor size; 0.0001 to 0.5.
-    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS, value_parser = ranges::eps, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS, value_parser = ranges::eps,
+          allow_negative_numbers = true)]
     pub eps: f32,
     /// DBSCAN minimum points in a neighbourhood (the point included), over the background:
     /// each window adds the events its pixels' noise puts in a neighbourhood by chance (the

@@ -33,7 +33,8 @@ pub struct ReplayArgs {
     pub hello_timeout: Duration,
     /// Milliseconds without an acknowledgement before frames are sent again; 1 to 600000
     /// (ten minutes).
-    #[arg(long, default_value_t = 1000, value_name = "MS", value_parser = ranges::retry_ms, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1000, value_name = "MS", value_parser = ranges::retry_ms,
+          allow_negative_numbers = true)]
     pub retry_ms: u64,
     /// Send every event. By default only the events the device's windows will hold are sent
     /// (this runs the same input filter and windowing to find them: the device cuts the same

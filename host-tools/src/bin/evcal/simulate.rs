@@ -54,7 +54,8 @@ pub struct SimulateArgs {
           allow_negative_numbers = true)]
     pub events_per_window: Option<u32>,
     /// Milliseconds between window ticks (for the truth); 0 (back to back) to 60000.
-    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms,
+          allow_negative_numbers = true)]
     pub step_ms: f64,
     /// No progress bar.
     #[arg(long, short)]
