@@ -4,6 +4,7 @@
 use crate::common::{
     check_writable, outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
 };
+use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
@@ -65,14 +66,15 @@ pub struct TargetArgs {
     pub pattern: String,
     /// Spacing S in metres: circles in one column are 2·S apart, neighbouring columns S
     /// apart (offset by S vertically). The focal length does not depend on it; the poses do.
-    #[arg(long, value_name = "METRES")]
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     pub spacing: f64,
     /// Radius of the printed circles, metres. A circle seen at a slant images as an ellipse
     /// whose centre is not the image of the circle's centre (the nearer half is drawn
     /// larger); the solve models where each outline's centre lies, which takes the radius.
     /// Default: estimated from the fitted radii (a few percent short, which leaves a few
-    /// thousandths of a pixel).
-    #[arg(long, value_name = "METRES")]
+    /// thousandths of a pixel). From a twentieth of --spacing to half the diagonal spacing
+    /// (0.707 --spacing), where neighbouring circles would touch.
+    #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     pub radius: Option<f64>,
 }
 
@@ -96,11 +98,12 @@ pub struct SolveArgs {
     /// Leave out a view whose points moved less than this (RMS, px) from a kept view. 0, the
     /// default, keeps every window's view: no two windows share an event, so each is a
     /// measurement of its own even where the board barely moved, and keeping them all
-    /// tightens a slow motion's σ. Raise it (e.g. 2) only to solve faster.
-    #[arg(long, default_value_t = 0.0, value_name = "PX")]
+    /// tightens a slow motion's σ. Raise it (e.g. 2) only to solve faster. 0 to 2000.
+    #[arg(long, default_value_t = 0.0, value_name = "PX", value_parser = ranges::min_change_px,
+          allow_negative_numbers = true)]
     pub min_change_px: f64,
-    /// Most views solved from (evenly thinned beyond it).
-    #[arg(long, default_value_t = 500)]
+    /// Most views solved from (evenly thinned beyond it); at least 3.
+    #[arg(long, default_value_t = 500, value_parser = ranges::max_views, allow_negative_numbers = true)]
     pub max_views: usize,
     /// Solve on the centres as detected. By default evcal measures how far the centres trail
     /// their circles along the motion (a DVS pixel fires late inside a blurred edge: about a
@@ -131,13 +134,8 @@ pub struct SolveArgs {
 
 impl SolveArgs {
     /// The run's setup for `pattern` on a sensor of `size`.
+    /// (`--min-change-px` and `--max-views` were checked as they were parsed: [`ranges`].)
     pub fn setup(&self, pattern: Pattern, size: [u32; 2]) -> Result<Setup> {
-        if !(self.min_change_px.is_finite() && self.min_change_px >= 0.0) {
-            bail!("--min-change-px must be a non-negative number of pixels");
-        }
-        if self.max_views < evcal_host::calib::MIN_VIEWS {
-            bail!("--max-views must be at least {}", evcal_host::calib::MIN_VIEWS);
-        }
         let mut s = Setup::new(pattern, size);
         s.calib.fix_k3 = self.fix_k3;
         s.calib.zero_tangential = self.zero_tangential;
@@ -183,27 +181,6 @@ fn is_detections(path: &Path) -> Result<bool> {
     Ok(head[..n].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
 }
 
-/// The printed boards spacings lie between (metres): a spacing outside is a wrong unit or a
-/// typo, and the views it gives fail far from where it was given.
-const SPACING_RANGE: std::ops::RangeInclusive<f64> = 0.001..=1.0;
-
-/// Checks `--spacing` for a plausible length in metres.
-pub fn check_spacing(spacing: f64) -> Result<()> {
-    if !SPACING_RANGE.contains(&spacing) {
-        let hint = if (1.0..=1000.0).contains(&spacing) {
-            format!(": metres, not millimetres? ({spacing} mm is --spacing {})", spacing * 1e-3)
-        } else {
-            String::new()
-        };
-        bail!(
-            "--spacing {spacing}: a printed board's circle spacing is {} to {} m{hint}",
-            SPACING_RANGE.start(),
-            SPACING_RANGE.end()
-        );
-    }
-    Ok(())
-}
-
 /// Checks that the outputs can be written, before any work.
 pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
     if out.exists() && !out.is_dir() {
@@ -217,7 +194,10 @@ pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
-    check_spacing(a.target.spacing)?;
+    ranges::check_spacing(a.target.spacing)?;
+    if let Some(r) = a.target.radius {
+        ranges::check_radius(r, a.target.spacing)?;
+    }
     check_outputs(&a.out, a.json.as_deref())?;
     let from_events = !is_detections(&a.input)?;
     let (windows, size) = if !from_events {
@@ -242,15 +222,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         bail!("{}: no detection windows (an empty file)", a.input.display());
     }
     let mut setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
-    if let Some(r) = a.target.radius {
-        if !(r.is_finite() && r > 0.0 && r < 0.5 * pattern.spacing * std::f64::consts::SQRT_2) {
-            bail!(
-                "--radius must be a positive number of metres below half the diagonal spacing ({:.4} m): circles would overlap",
-                0.5 * pattern.spacing * std::f64::consts::SQRT_2
-            );
-        }
-        setup.circle_radius = Some(r);
-    }
+    setup.circle_radius = a.target.radius;
     if !a.quiet {
         eprintln!(
             "evcal: target {}x{} asymmetric circle grid, spacing {} m, as seen from the front:\n{}",

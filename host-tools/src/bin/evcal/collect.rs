@@ -1,7 +1,8 @@
 //! `evcal collect`: record the detections of a device that has its own sensor.
 
-use crate::common::{check_writable, output, spinner, stop_on_ctrl_c, LinkArgs};
-use anyhow::{bail, Context, Result};
+use crate::common::{check_writable, exit_interrupted, output, spinner, stop_on_ctrl_c, LinkArgs};
+use crate::ranges;
+use anyhow::{Context, Result};
 use clap::Args;
 use evcal_host::input::link::{
     collect::{collect, CollectLimits, CollectReport},
@@ -16,11 +17,12 @@ pub struct CollectArgs {
     /// Write the JSON lines here instead of standard output.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Stop after this many seconds (default: until Ctrl-C or the link closes).
-    #[arg(long)]
-    pub seconds: Option<f64>,
-    /// Stop after this many windows.
-    #[arg(long)]
+    /// Stop after this many seconds, 0.001 to a year (default: until Ctrl-C or the link
+    /// closes).
+    #[arg(long, value_name = "SECONDS", value_parser = ranges::listen, allow_negative_numbers = true)]
+    pub seconds: Option<Duration>,
+    /// Stop after this many windows (at least 1).
+    #[arg(long, value_parser = ranges::windows, allow_negative_numbers = true)]
     pub windows: Option<u64>,
     /// No progress display or summary on standard error.
     #[arg(long, short)]
@@ -28,20 +30,16 @@ pub struct CollectArgs {
 }
 
 pub fn run(a: CollectArgs) -> Result<()> {
-    let duration = match a.seconds {
-        Some(s) if !(s.is_finite() && s > 0.0) => bail!("--seconds must be a positive number"),
-        Some(s) => Some(Duration::from_secs_f64(s)),
-        None => None,
-    };
+    let duration = a.seconds;
     if let Some(o) = &a.out {
         check_writable(o, "--out")?;
     }
     let stop = stop_on_ctrl_c();
-    let link = a.link.open()?;
+    let link = a.link.open(stop)?;
     let mut out = output(a.out.as_deref())?;
     let pb = spinner(a.quiet, "collecting");
     let mut write_err: Option<anyhow::Error> = None;
-    let result = collect(&link, CollectLimits { duration, windows: a.windows }, &stop, &mut |p| match p {
+    let result = collect(&link, CollectLimits { duration, windows: a.windows }, stop, &mut |p| match p {
         Progress::Window(w) => {
             if write_err.is_none() {
                 write_err = out.line(&w.to_json_line()).err();
@@ -75,7 +73,7 @@ pub fn run(a: CollectArgs) -> Result<()> {
         );
     }
     if r.interrupted {
-        std::process::exit(130);
+        exit_interrupted();
     }
     Ok(())
 }

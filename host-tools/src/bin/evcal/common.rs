@@ -1,6 +1,7 @@
 //! What several commands share: the core's options, sensor resolution, progress bars,
 //! simulation with truth.
 
+use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use evcal_core::{
@@ -10,6 +11,7 @@ use evcal_core::{
     fit::{FitConfig, FitMethod},
     window::WindowConfig,
 };
+use evcal_host::input::recording::remove_spools;
 use evcal_host::{
     input::detections,
     input::recording::{guess_sensor, parse_sensor, OpenOptions, Recording, TimeUnit},
@@ -19,6 +21,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use std::{
     io::{BufWriter, Write},
     path::Path,
+    sync::atomic::{AtomicBool, Ordering},
 };
 
 /// What a recording cannot say about itself: which stream to read, the unit of its times.
@@ -82,23 +85,29 @@ pub struct CoreArgs {
     /// host; `evcal replay` asks a device for at most what it holds (the firmware: 4000),
     /// unless given this option.
     #[arg(long, value_name = "N",
-          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
+          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64),
+          allow_negative_numbers = true)]
     pub events_per_window: Option<u32>,
-    /// Milliseconds of event time between window ticks (the paper: 33).
-    #[arg(long, default_value_t = 33.333)]
+    /// Milliseconds of event time between window ticks (the paper: 33); 0 (windows back to
+    /// back) to 60000.
+    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms,
+          allow_negative_numbers = true)]
     pub step_ms: f64,
-    /// DBSCAN radius, in coordinates normalised by the sensor size.
-    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS)]
+    /// DBSCAN radius, in coordinates normalised by the sensor size; 0.0001 to 0.5.
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS, value_parser = ranges::eps,
+          allow_negative_numbers = true)]
     pub eps: f32,
     /// DBSCAN minimum points in a neighbourhood (the point included), over the background:
     /// each window adds the events its pixels' noise puts in a neighbourhood by chance (the
     /// lower quartile of its counts over a 32x24 grid of the sensor, plus two standard
     /// deviations), so that a dim room's noise does not join circles; 0 added on a clean
-    /// window.
-    #[arg(long, default_value_t = evcal_core::config::DEFAULT_MIN_PTS)]
+    /// window. 1 to 32000 (the most events a window holds).
+    #[arg(long, default_value_t = evcal_core::config::DEFAULT_MIN_PTS, value_parser = ranges::min_pts,
+          allow_negative_numbers = true)]
     pub min_pts: u16,
-    /// Use ST-DBSCAN: neighbours must also be within this fraction of the window's duration.
-    #[arg(long)]
+    /// Use ST-DBSCAN: neighbours must also be within this fraction of the window's duration
+    /// (0.0001 to 1).
+    #[arg(long, value_name = "FRACTION", value_parser = ranges::eps_t, allow_negative_numbers = true)]
     pub eps_t: Option<f32>,
     /// Circle fit: erwls (the method), ols or centroid (for comparison).
     #[arg(long, value_enum, default_value_t = Method::Erwls)]
@@ -130,18 +139,9 @@ pub enum Method {
 }
 
 impl CoreArgs {
+    /// The detector's configuration on `sensor` (the values were checked as they were parsed:
+    /// [`ranges`]).
     pub fn config(&self, sensor: SensorSize) -> Result<DetectConfig> {
-        if !(self.step_ms.is_finite() && self.step_ms >= 0.0) {
-            bail!("--step-ms must be a non-negative number of milliseconds");
-        }
-        if !(self.eps.is_finite() && self.eps > 0.0 && self.eps < 1.0) {
-            bail!("--eps must be between 0 and 1 (normalised coordinates; the paper uses 0.015)");
-        }
-        if let Some(t) = self.eps_t {
-            if !(t.is_finite() && t > 0.0) {
-                bail!("--eps-t must be a positive fraction of the window's duration");
-            }
-        }
         Ok(DetectConfig {
             sensor,
             window: WindowConfig {
@@ -150,7 +150,7 @@ impl CoreArgs {
                     .map_or_else(|| detections::window_events_for(sensor, self.filled_discs), |n| n as usize),
                 step_us: (self.step_ms * 1000.0).round() as u64,
             },
-            cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts.max(1), eps_t: self.eps_t },
+            cluster: ClusterConfig { eps: self.eps, min_pts: self.min_pts, eps_t: self.eps_t },
             fit: FitConfig {
                 method: match self.method {
                     Method::Erwls => FitMethod::Erwls,
@@ -276,9 +276,7 @@ pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
 
 /// Simulates with a progress bar; all events in memory.
 pub fn run_simulation(cfg: SimConfig, seconds: f64, quiet: bool) -> Result<(Vec<Event>, Simulator)> {
-    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
-        bail!("--seconds must be between 0 and 3600");
-    }
+    ranges::SIM_SECONDS.check(seconds).map_err(|e| anyhow::anyhow!("--seconds {}: {e}", ranges::number(seconds)))?;
     let mut sim = Simulator::new(cfg);
     let pb = progress_bar((seconds * 1000.0) as u64, quiet, "simulating");
     let mut events = Vec::new();
@@ -302,9 +300,7 @@ pub fn run_windowed_simulation(
     window: WindowConfig,
     quiet: bool,
 ) -> Result<(Vec<Event>, Simulator)> {
-    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 3600.0) {
-        bail!("--seconds must be between 0 and 3600");
-    }
+    ranges::SIM_SECONDS.check(seconds).map_err(|e| anyhow::anyhow!("--seconds {}: {e}", ranges::number(seconds)))?;
     let pb = progress_bar((seconds * 1000.0) as u64, quiet, "simulating");
     let out = evcal_host::eval::simulate_windows(cfg, seconds, window, |t| pb.set_position((t * 1000.0) as u64));
     pb.finish_and_clear();
@@ -345,36 +341,74 @@ pub struct LinkArgs {
     /// `-serial tcp:127.0.0.1:PORT,server=on,wait=on,nodelay=on`, or `evcal device`).
     #[arg(long)]
     pub port: String,
-    /// Serial line rate in baud (ignored for tcp:).
-    #[arg(long, default_value_t = 115_200)]
+    /// Serial line rate in baud, 50 to 20000000 (ignored for tcp:).
+    #[arg(long, default_value_t = 115_200, value_parser = ranges::baud, allow_negative_numbers = true)]
     pub baud: u32,
-    /// Seconds to keep retrying a refused TCP connection (QEMU may still be starting).
-    #[arg(long, default_value_t = 10.0)]
-    pub connect_timeout: f64,
+    /// Seconds to keep retrying a refused TCP connection (QEMU may still be starting); 0 (one
+    /// attempt) to a year. Ctrl-C stops the retries.
+    #[arg(long, default_value = "10", value_name = "SECONDS", value_parser = ranges::wait,
+          allow_negative_numbers = true)]
+    pub connect_timeout: std::time::Duration,
 }
 
 impl LinkArgs {
-    pub fn open(&self) -> Result<evcal_host::input::link::Link> {
-        let port = evcal_host::input::link::Port::parse(&self.port)?;
-        if !(self.connect_timeout.is_finite() && self.connect_timeout >= 0.0) {
-            bail!("--connect-timeout must be a non-negative number of seconds");
+    /// Opens the link; Ctrl-C while connecting (`stop` set) ends the command with status 130.
+    pub fn open(&self, stop: &AtomicBool) -> Result<evcal_host::input::link::Link> {
+        use evcal_host::input::link::{Link, LinkError, Port};
+        let port = Port::parse(&self.port)?;
+        match Link::open(&port, self.baud, self.connect_timeout, stop) {
+            Err(LinkError::Interrupted) => {
+                eprintln!("evcal: interrupted while connecting to {}", self.port);
+                exit_interrupted()
+            }
+            r => Ok(r?),
         }
-        Ok(evcal_host::input::link::Link::open(
-            &port,
-            self.baud,
-            std::time::Duration::from_secs_f64(self.connect_timeout),
-        )?)
     }
 }
 
-/// A flag that Ctrl-C (or SIGTERM) sets, so that a command can stop cleanly with everything
-/// received so far written.
-pub fn stop_on_ctrl_c() -> std::sync::Arc<std::sync::atomic::AtomicBool> {
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let s = std::sync::Arc::clone(&stop);
+/// Set by Ctrl-C (or SIGTERM, SIGHUP).
+static STOP: AtomicBool = AtomicBool::new(false);
+/// Whether the command stops by itself on [`STOP`] (see [`stop_on_ctrl_c`]); until then the
+/// signal ends the process at once.
+static COOPERATIVE: AtomicBool = AtomicBool::new(false);
+
+/// Handles Ctrl-C, SIGTERM and SIGHUP for every command: the temporary copies of streams are
+/// removed ([`remove_spools`]) and the process ends at once with status 130, unless the
+/// command stops by itself ([`stop_on_ctrl_c`]); a second signal then ends it at once.
+pub fn handle_signals() {
     // Only fails if a handler is already set, and then that one stops us.
-    let _ = ctrlc::set_handler(move || s.store(true, std::sync::atomic::Ordering::Relaxed));
-    stop
+    let _ = ctrlc::set_handler(|| {
+        let again = STOP.swap(true, Ordering::SeqCst);
+        if again || !COOPERATIVE.load(Ordering::SeqCst) {
+            remove_spools();
+            // Not `exit`: its handlers (HDF5's library shutdown among them) would run while
+            // the main thread may be inside HDF5.
+            #[cfg(unix)]
+            // SAFETY: `_exit` ends the process without touching its state.
+            unsafe {
+                libc::_exit(EXIT_INTERRUPTED)
+            };
+            #[cfg(not(unix))]
+            std::process::exit(EXIT_INTERRUPTED);
+        }
+    });
+}
+
+/// The exit status of a command stopped by Ctrl-C or SIGTERM (128 + SIGINT, as shells give).
+pub const EXIT_INTERRUPTED: i32 = 130;
+
+/// The flag Ctrl-C (or SIGTERM) sets from now on instead of ending the process, so that a
+/// command can stop cleanly with everything received so far written; it then ends with
+/// [`exit_interrupted`].
+pub fn stop_on_ctrl_c() -> &'static AtomicBool {
+    COOPERATIVE.store(true, Ordering::SeqCst);
+    &STOP
+}
+
+/// Ends a command that stopped on Ctrl-C: temporary copies removed, status 130.
+pub fn exit_interrupted() -> ! {
+    remove_spools();
+    std::process::exit(EXIT_INTERRUPTED)
 }
 
 /// Standard output's reader went away (`evcal ... | head`). Not a failure: `main` ends

@@ -24,7 +24,8 @@ pub struct DemoArgs {
     /// Seconds of motion (a 4000-event window every 33 ms: 30 windows a second; only the
     /// milliseconds each window needs are simulated). 8 s take the cone through its whole
     /// range of tilts (15–35°, a 7.3 s cycle): with 3 s, half of it, fx read 0.13 % long.
-    #[arg(long, default_value_t = 8.0)]
+    /// 0.001 to 3600.
+    #[arg(long, default_value_t = 8.0, value_parser = crate::ranges::sim_seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Lighting.
     #[arg(long, value_enum, default_value_t = Light::Good)]

@@ -9,6 +9,7 @@ mod demo;
 mod detect;
 mod device;
 mod info;
+mod ranges;
 mod replay;
 mod simulate;
 
@@ -108,6 +109,11 @@ evcal collect --port tcp:127.0.0.1:7878 --seconds 60 > detections.jsonl")]
     Collect(collect::CollectArgs),
     /// Run a virtual device on a TCP port: the firmware's protocol loop and detection core,
     /// here on the host, one connection at a time (each gets a fresh device).
+    ///
+    /// A board has one serial line: while a host is connected, another is closed at once
+    /// (`replay` then says the device is busy with another host). A host that sends nothing
+    /// for --idle-timeout seconds is dropped, so that a silent or vanished one does not keep
+    /// the device.
     #[command(after_help = "Example (two terminals):\n  evcal device --listen 127.0.0.1:7878\n  \
 evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
     Device(device::DeviceArgs),
@@ -115,6 +121,7 @@ evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
 
 fn main() {
     let cli = Cli::parse();
+    common::handle_signals();
     let r = match cli.command {
         Command::Detect(a) => detect::run(a),
         Command::Simulate(a) => simulate::run(a),

@@ -1,8 +1,10 @@
 //! `evcal replay`: stream a recording into a device and collect its detections.
 
 use crate::common::{
-    check_writable, output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs, LinkArgs, ReadArgs,
+    check_writable, exit_interrupted, output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs,
+    LinkArgs, ReadArgs,
 };
+use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::input::link::{
@@ -24,11 +26,15 @@ pub struct ReplayArgs {
     /// Write the JSON lines here instead of standard output.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
-    /// Seconds to wait for the device's Hello before sending the configuration anyway.
-    #[arg(long, default_value_t = 3.0)]
-    pub hello_timeout: f64,
-    /// Milliseconds without an acknowledgement before frames are sent again.
-    #[arg(long, default_value_t = 1000)]
+    /// Seconds to wait for the device's Hello before sending the configuration anyway; 0 to
+    /// a year.
+    #[arg(long, default_value = "3", value_name = "SECONDS", value_parser = ranges::wait,
+          allow_negative_numbers = true)]
+    pub hello_timeout: Duration,
+    /// Milliseconds without an acknowledgement before frames are sent again; 1 to 600000
+    /// (ten minutes).
+    #[arg(long, default_value_t = 1000, value_name = "MS", value_parser = ranges::retry_ms,
+          allow_negative_numbers = true)]
     pub retry_ms: u64,
     /// Send every event. By default only the events the device's windows will hold are sent
     /// (this runs the same input filter and windowing to find them: the device cuts the same
@@ -47,14 +53,8 @@ pub fn run(a: ReplayArgs) -> Result<()> {
     let rec = a.read.open(&a.recording, a.quiet, a.core.sensor.is_none())?;
     let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
     let cfg = a.core.config(sensor)?;
-    if !(a.hello_timeout.is_finite() && a.hello_timeout >= 0.0) {
-        bail!("--hello-timeout must be a non-negative number of seconds");
-    }
-    if a.retry_ms == 0 {
-        bail!("--retry-ms must be at least 1");
-    }
     let opts = ReplayOptions {
-        hello_timeout: Duration::from_secs_f64(a.hello_timeout),
+        hello_timeout: a.hello_timeout,
         retry_timeout: Duration::from_millis(a.retry_ms),
         all_events: a.all_events,
         // The sensor's default is the host's choice: a device holding fewer (the firmware's
@@ -71,14 +71,14 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     }
     let stop = stop_on_ctrl_c();
-    let mut link = a.link.open()?;
+    let mut link = a.link.open(stop)?;
     let mut out = output(a.out.as_deref())?;
     let pb = progress_bar(rec.file_bytes, a.quiet, "replaying");
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);
     let events = with_position(&mut rec, 16_384, &progress);
     let mut write_err: Option<anyhow::Error> = None;
-    let result = replay(&mut link, events, cfg, &opts, &stop, &mut |p| match p {
+    let result = replay(&mut link, events, cfg, &opts, stop, &mut |p| match p {
         Progress::Window(w) => {
             if write_err.is_none() {
                 write_err = out.line(&w.to_json_line()).err();
@@ -108,7 +108,7 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         bail!("reading {}: {e} (the events before it were replayed)", a.recording.display());
     }
     if r.interrupted {
-        std::process::exit(130);
+        exit_interrupted();
     }
     Ok(())
 }

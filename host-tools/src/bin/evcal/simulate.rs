@@ -1,6 +1,7 @@
 //! `evcal simulate`: a simulated recording and its ground truth.
 
 use crate::common::{run_simulation, truth_json, window_line, window_truths, write_json, WindowWhy};
+use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_core::{event::SensorSize, window::WindowConfig};
@@ -36,11 +37,11 @@ pub struct SimulateArgs {
     /// Lighting: good, or low (darker, far noisier).
     #[arg(long, value_enum, default_value_t = Light::Good)]
     pub light: Light,
-    /// Simulated seconds.
-    #[arg(long, default_value_t = 5.0)]
+    /// Simulated seconds, 0.001 to 3600 (every event is held in memory).
+    #[arg(long, default_value_t = 5.0, value_parser = ranges::sim_seconds, allow_negative_numbers = true)]
     pub seconds: f64,
     /// Seed of every random choice (same seed, same events).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     pub seed: u64,
     /// Where to write the recording (.txt or .h5).
     #[arg(long, short)]
@@ -49,10 +50,12 @@ pub struct SimulateArgs {
     /// `evcal detect`'s for the sensor: 8000 for davis346, 15000 dvxplorer, 25500 imx636,
     /// 8500 genx320]
     #[arg(long, value_name = "N",
-          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64))]
+          value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64),
+          allow_negative_numbers = true)]
     pub events_per_window: Option<u32>,
-    /// Milliseconds between window ticks (for the truth).
-    #[arg(long, default_value_t = 33.333)]
+    /// Milliseconds between window ticks (for the truth); 0 (back to back) to 60000.
+    #[arg(long, default_value_t = 33.333, value_name = "MS", value_parser = ranges::step_ms,
+          allow_negative_numbers = true)]
     pub step_ms: f64,
     /// No progress bar.
     #[arg(long, short)]
@@ -71,71 +74,65 @@ pub struct PixelArgs {
     /// with a cutoff I times this, so dark pixels (the printed circles, 6 % reflectance, or
     /// anything under --light low, a twentieth of the light) lag by milliseconds and OFF edges
     /// into a circle lag more than ON edges out of it. Real DVS pixels: hundreds of Hz to a few
-    /// kHz in office light. "inf" (the default) follows the light at once.
-    #[arg(long, value_name = "HZ")]
+    /// kHz in office light. "inf" (the default) follows the light at once. 1 to 1000000, or
+    /// inf.
+    #[arg(long, value_name = "HZ", value_parser = ranges::photoreceptor_hz, allow_negative_numbers = true)]
     pub photoreceptor_hz: Option<f64>,
-    /// Contrast threshold, ON and OFF, in log intensity (0.25: a 28 % change fires an event).
-    #[arg(long, value_name = "LOG")]
+    /// Contrast threshold, ON and OFF, in log intensity (0.25: a 28 % change fires an event);
+    /// 0.01 to 5.
+    #[arg(long, value_name = "LOG", value_parser = ranges::threshold, allow_negative_numbers = true)]
     pub threshold: Option<f64>,
-    /// Pixel-to-pixel standard deviation of the thresholds, log units.
-    #[arg(long, value_name = "LOG")]
+    /// Pixel-to-pixel standard deviation of the thresholds, log units; 0 to 1.
+    #[arg(long, value_name = "LOG", value_parser = ranges::mismatch, allow_negative_numbers = true)]
     pub mismatch: Option<f64>,
     /// Leak events: mean rate per pixel, Hz, of the ON events a still pixel fires as its
     /// memorised level leaks (real sensors: about 0.1 Hz); rates spread over a third of a
-    /// decade from pixel to pixel.
-    #[arg(long, value_name = "HZ")]
+    /// decade from pixel to pixel. 0 to 100.
+    #[arg(long, value_name = "HZ", value_parser = ranges::leak_hz, allow_negative_numbers = true)]
     pub leak_hz: Option<f64>,
     /// Shot noise: rate per pixel in darkness, Hz, of random ON/OFF events; a quarter of it
     /// on a perfect white in office light, more the darker a pixel (real sensors under dim
-    /// light: about 1 Hz).
-    #[arg(long, value_name = "HZ")]
+    /// light: about 1 Hz). 0 to 1000.
+    #[arg(long, value_name = "HZ", value_parser = ranges::shot_noise_hz, allow_negative_numbers = true)]
     pub shot_noise_hz: Option<f64>,
     /// Scene illumination, 1 = office light (the --light preset gives 1 or 0.05): scales the
     /// photoreceptor's speed and the shot noise, and flattens the contrast against the dark
-    /// signal.
-    #[arg(long, value_name = "X")]
+    /// signal. 0.0001 to 10000.
+    #[arg(long, value_name = "X", value_parser = ranges::illumination, allow_negative_numbers = true)]
     pub illumination: Option<f64>,
 }
 
 impl PixelArgs {
-    /// The preset's pixel model with the flags given.
-    pub fn apply(&self, mut px: PixelModel) -> Result<PixelModel> {
-        let positive = |v: Option<f64>, name: &str, zero_ok: bool| -> Result<Option<f64>> {
-            match v {
-                Some(x) if x.is_nan() || x < 0.0 || (!zero_ok && x == 0.0) => {
-                    bail!("--{name} must be a {} number", if zero_ok { "non-negative" } else { "positive" })
-                }
-                Some(x) if x.is_infinite() && name != "photoreceptor-hz" => bail!("--{name} must be finite"),
-                v => Ok(v),
-            }
-        };
-        if let Some(f) = positive(self.photoreceptor_hz, "photoreceptor-hz", false)? {
+    /// The preset's pixel model with the flags given (their ranges were checked as they were
+    /// parsed: [`ranges`]).
+    pub fn apply(&self, mut px: PixelModel) -> PixelModel {
+        if let Some(f) = self.photoreceptor_hz {
             px.photoreceptor_hz = f.is_finite().then_some(f);
         }
-        if let Some(v) = positive(self.threshold, "threshold", false)? {
+        if let Some(v) = self.threshold {
             px.threshold = v;
         }
-        if let Some(v) = positive(self.mismatch, "mismatch", true)? {
+        if let Some(v) = self.mismatch {
             px.mismatch = v;
         }
-        if let Some(v) = positive(self.leak_hz, "leak-hz", true)? {
+        if let Some(v) = self.leak_hz {
             px.leak_hz = v;
             px.leak_spread_decades = 0.33;
         }
-        if let Some(v) = positive(self.shot_noise_hz, "shot-noise-hz", true)? {
+        if let Some(v) = self.shot_noise_hz {
             px.shot_noise_hz = v;
         }
-        if let Some(v) = positive(self.illumination, "illumination", false)? {
+        if let Some(v) = self.illumination {
             px.illumination = v;
         }
-        Ok(px)
+        px
     }
 }
 
 pub fn run(a: SimulateArgs) -> Result<()> {
     let mut cfg = SimConfig::preset(&a.sensor, &a.pattern, a.trajectory, a.light, a.seed)
         .ok_or_else(|| anyhow::anyhow!("unknown sensor or pattern preset"))?;
-    cfg.pixel = a.pixel.apply(cfg.pixel)?;
+    cfg.pixel = a.pixel.apply(cfg.pixel);
     let mut took = Vec::new();
     if let Some(path) = &a.poses {
         let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -153,9 +150,6 @@ pub fn run(a: SimulateArgs) -> Result<()> {
             );
         }
         took = motion.apply(&mut cfg);
-    }
-    if !(a.step_ms.is_finite() && a.step_ms >= 0.0) {
-        bail!("--step-ms must be a non-negative number of milliseconds");
     }
     // Before the simulation, not after it: a missing folder is no reason to lose its work.
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {

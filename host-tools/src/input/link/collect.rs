@@ -85,7 +85,13 @@ pub fn collect(
             Some(Incoming::Bad(_)) => report.frames_bad += 1,
             Some(Incoming::Ack(_)) | None => {}
             Some(Incoming::Closed(why)) => {
-                report.closed = Some(why.unwrap_or_else(|| "end of input".into()));
+                let why = why.unwrap_or_else(|| "end of input".into());
+                report.closed = Some(if link.traffic().1 == 0 {
+                    // As `evcal device` closes a second host's connection.
+                    format!("{why}, before the device said a word: the device is busy with another host (it serves one at a time), or it is shutting down")
+                } else {
+                    why
+                });
                 break;
             }
         }

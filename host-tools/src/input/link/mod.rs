@@ -62,6 +62,9 @@ pub enum LinkError {
     /// A frame could not be encoded (a value out of the wire format's range).
     #[error("encoding a frame: {0}")]
     Encode(wire::Error),
+    /// Stopped by the caller (Ctrl-C) before the link was open.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 impl From<wire::Error> for LinkError {
@@ -165,11 +168,12 @@ impl Link {
     }
 
     /// Opens a serial port (at `baud`) or a TCP endpoint (retrying a refused connection for
-    /// up to `connect_timeout`: QEMU may still be starting).
-    pub fn open(port: &Port, baud: u32, connect_timeout: Duration) -> Result<Self> {
+    /// up to `connect_timeout`: QEMU may still be starting). [`LinkError::Interrupted`] if
+    /// `stop` is set while connecting: it is heard within [`STOP_POLL`].
+    pub fn open(port: &Port, baud: u32, connect_timeout: Duration, stop: &AtomicBool) -> Result<Self> {
         match port {
             Port::Tcp(addr) => {
-                let stream = connect_tcp(addr, connect_timeout)?;
+                let stream = connect_tcp(addr, connect_timeout, stop)?;
                 // QEMU answers in ~3.5 ms per round trip with Nagle off, ~47 ms with it on.
                 stream.set_nodelay(true).map_err(io("setting TCP_NODELAY"))?;
                 stream.set_read_timeout(Some(Duration::from_millis(200))).map_err(io("setting a read time-out"))?;
@@ -218,25 +222,72 @@ impl Drop for Link {
     }
 }
 
-fn connect_tcp(addr: &str, timeout: Duration) -> Result<TcpStream> {
+/// How often a wait that the caller may stop looks at the stop flag.
+pub const STOP_POLL: Duration = Duration::from_millis(50);
+/// The longest one attempt to connect to one address takes (an address that drops packets);
+/// a refused connection fails at once.
+const CONNECT_ATTEMPT: Duration = Duration::from_secs(2);
+/// The pause between rounds of attempts.
+const CONNECT_PAUSE: Duration = Duration::from_millis(100);
+
+/// Connects to `addr`, retrying for up to `timeout`, until `stop` is set.
+fn connect_tcp(addr: &str, timeout: Duration, stop: &AtomicBool) -> Result<TcpStream> {
     let started = Instant::now();
     loop {
-        let addrs: Vec<_> = addr.to_socket_addrs().map_err(io(format!("cannot resolve {addr}")))?.collect();
-        let mut last = None;
-        for a in &addrs {
-            match TcpStream::connect_timeout(a, Duration::from_secs(2)) {
-                Ok(s) => return Ok(s),
-                Err(e) => last = Some(e),
-            }
-        }
+        let e = match attempt_connect(addr, stop)? {
+            Ok(s) => return Ok(s),
+            Err(e) => e,
+        };
         if started.elapsed() >= timeout {
-            let e = last.map(|e| e.to_string()).unwrap_or_else(|| "no address".into());
             return Err(LinkError::Device(format!(
                 "cannot connect to tcp:{addr} within {:.1} s: {e}",
                 timeout.as_secs_f64()
             )));
         }
-        std::thread::sleep(Duration::from_millis(100));
+        let paused = Instant::now();
+        while paused.elapsed() < CONNECT_PAUSE {
+            if stop.load(Ordering::Relaxed) {
+                return Err(LinkError::Interrupted);
+            }
+            std::thread::sleep(STOP_POLL.min(CONNECT_PAUSE));
+        }
+    }
+}
+
+/// One round of attempts at each of `addr`'s addresses: the stream, or why none connected
+/// (a name that does not resolve is an error at once). On a thread of its own, so that
+/// `stop` is heard while a name resolves or a connection hangs: the thread is left to end
+/// by itself (within [`CONNECT_ATTEMPT`] per address).
+fn attempt_connect(addr: &str, stop: &AtomicBool) -> Result<Result<TcpStream, String>> {
+    let (send, done) = mpsc::channel();
+    let target = addr.to_string();
+    std::thread::Builder::new()
+        .name("evcal-connect".into())
+        .spawn(move || {
+            let r = target.to_socket_addrs().map(|addrs| {
+                let mut last = None;
+                for a in addrs {
+                    match TcpStream::connect_timeout(&a, CONNECT_ATTEMPT) {
+                        Ok(s) => return Ok(s),
+                        Err(e) => last = Some(e.to_string()),
+                    }
+                }
+                Err(last.unwrap_or_else(|| "no address".into()))
+            });
+            let _ = send.send(r);
+        })
+        .map_err(io("starting a thread to connect"))?;
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Err(LinkError::Interrupted);
+        }
+        match done.recv_timeout(STOP_POLL) {
+            Ok(r) => return r.map_err(io(format!("cannot resolve {addr}"))),
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => {
+                return Ok(Err("the thread connecting ended without a result".into()))
+            }
+        }
     }
 }
 
@@ -387,5 +438,28 @@ mod test {
         assert_eq!(got[1], Incoming::Ack(Ack { next: 3, window: 2, nak: false }));
         assert_eq!(got[2], Incoming::Closed(None));
         assert_eq!(traffic.received.load(Ordering::Relaxed), stream.len() as u64);
+    }
+
+    #[test]
+    fn connecting_stops_when_asked_while_retrying() {
+        // A port nobody listens on: every attempt is refused, and the retries would go on
+        // for a minute.
+        let closed = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+        let port = Port::Tcp(closed.to_string());
+        let stop = Arc::new(AtomicBool::new(false));
+        let s = Arc::clone(&stop);
+        let setter = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            s.store(true, Ordering::Relaxed);
+        });
+        let started = Instant::now();
+        let r = Link::open(&port, 0, Duration::from_secs(60), &stop);
+        setter.join().unwrap();
+        assert!(matches!(r, Err(LinkError::Interrupted)), "{:?}", r.err());
+        let took = started.elapsed();
+        assert!(took < Duration::from_millis(600), "{took:?}");
+        // Not asked to stop: the time-out, with the reason.
+        let e = Link::open(&port, 0, Duration::from_millis(200), &AtomicBool::new(false)).err().unwrap();
+        assert!(e.to_string().contains("cannot connect") && e.to_string().contains("within 0.2 s"), "{e}");
     }
 }

@@ -202,9 +202,7 @@ fn handshake(
         }
         match link.recv(Duration::from_millis(50)) {
             Some(Incoming::Hello(_)) => heard = true,
-            Some(Incoming::Closed(why)) => {
-                refuse!("the link closed before the device spoke{}", why.map(|w| format!(": {w}")).unwrap_or_default())
-            }
+            Some(Incoming::Closed(why)) => return Err(closed_before_hello(link, why)),
             // Detections or stats of an earlier session: not ours.
             _ => {}
         }
@@ -242,6 +240,7 @@ fn handshake(
                 }
                 Incoming::Hello(_) => {}
                 Incoming::Window(_) | Incoming::Stats(_) => {} // an earlier session's
+                Incoming::Closed(why) => return Err(closed_before_hello(link, why)),
                 other => note(&other, report, seq, on)?,
             }
         }
@@ -251,6 +250,20 @@ fn handshake(
         opts.max_retries + 1,
         opts.retry_timeout.as_secs_f64()
     )
+}
+
+/// The link closed (`why`, if known) before the device answered. A device that closed it
+/// without a byte is serving another host: `evcal device` closes a second connection at
+/// once, as a board's one serial line could not take it.
+fn closed_before_hello(link: &Link, why: Option<String>) -> LinkError {
+    let why = why.map(|w| format!(" ({w})")).unwrap_or_default();
+    if link.traffic().1 == 0 {
+        LinkError::Device(format!(
+            "the device closed the link before it said a word{why}: the device is busy with another host (it serves one at a time), or it is shutting down"
+        ))
+    } else {
+        LinkError::Device(format!("the link closed before the device answered{why}"))
+    }
 }
 
 /// Whether the device runs the configuration `asked`; with `window_up_to_device`, windows

@@ -13,7 +13,7 @@ use evcal_core::{
 use std::{
     collections::VecDeque,
     io::{self, ErrorKind, Read, Write},
-    net::{TcpListener, TcpStream},
+    net::{Shutdown, SocketAddr, TcpListener},
     sync::{Arc, Condvar, Mutex},
     thread::JoinHandle,
     time::{Duration, Instant},
@@ -44,7 +44,7 @@ impl VirtualDevice {
     ) -> Self {
         let thread = std::thread::Builder::new()
             .name("evcal-virtual-device".into())
-            .spawn(move || serve(config, opts, reader, writer))
+            .spawn(move || serve(config, opts, reader, writer, None).0)
             .expect("spawning the virtual device's thread");
         Self { thread }
     }
@@ -60,29 +60,56 @@ pub fn options() -> DeviceOptions {
     DeviceOptions { clock_hz: 1_000_000, ..DeviceOptions::DEFAULT }
 }
 
-/// The firmware's main loop, on the host.
-fn serve(config: DetectConfig, opts: DeviceOptions, mut reader: impl Read, mut writer: impl Write) -> Stats {
+/// Why a host's session with the device ended.
+#[derive(Debug)]
+pub enum SessionEnd {
+    /// The host closed the connection.
+    Closed,
+    /// The host sent nothing for the idle time-out, with nothing left for the device to do.
+    Idle,
+    /// Reading from or writing to the host failed (a host that stopped reading fails a write
+    /// after the idle time-out).
+    Failed(io::Error),
+}
+
+/// The firmware's main loop, on the host, until the host closes the input, a transfer fails,
+/// or the device has waited `idle` for a byte with nothing to do (`reader` must time out
+/// its reads to be heard).
+fn serve(
+    config: DetectConfig,
+    opts: DeviceOptions,
+    mut reader: impl Read,
+    mut writer: impl Write,
+    idle: Option<Duration>,
+) -> (Stats, SessionEnd) {
     let mut dev: Box<Device> = Box::new(Device::new(config, opts));
     let mut clock = Micros(Instant::now());
     let mut buf = [0u8; 256];
     let (mut start, mut end) = (0usize, 0usize);
+    let mut heard = Instant::now();
     loop {
         while let Some(frame) = dev.poll(&mut clock) {
-            if writer.write_all(frame).is_err() {
-                return dev.stats();
+            if let Err(e) = writer.write_all(frame) {
+                return (dev.stats(), SessionEnd::Failed(e));
             }
         }
-        if writer.flush().is_err() {
-            return dev.stats();
+        if let Err(e) = writer.flush() {
+            return (dev.stats(), SessionEnd::Failed(e));
         }
         if start == end {
             match reader.read(&mut buf) {
-                Ok(0) => return dev.stats(),
-                Ok(n) => (start, end) = (0, n),
-                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => {
-                    continue
+                Ok(0) => return (dev.stats(), SessionEnd::Closed),
+                Ok(n) => {
+                    (start, end) = (0, n);
+                    heard = Instant::now();
                 }
-                Err(_) => return dev.stats(),
+                Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock | ErrorKind::Interrupted) => {
+                    if idle.is_some_and(|t| heard.elapsed() >= t) {
+                        return (dev.stats(), SessionEnd::Idle);
+                    }
+                    continue;
+                }
+                Err(e) => return (dev.stats(), SessionEnd::Failed(e)),
             }
         }
         start += dev.receive(buf.get(start..end).unwrap_or(&[]));
@@ -108,19 +135,70 @@ where
     (Link::new(host_r, to_device(host_w)), device)
 }
 
-/// Serves one TCP connection after another, each with a fresh device (as a board reset
-/// between sessions would give), until `accept` fails.
+/// What [`serve_tcp`] tells its caller, as it happens.
+#[derive(Debug)]
+pub enum DeviceEvent {
+    /// A host connected and is served.
+    Connected(SocketAddr),
+    /// A host connected while `serving` was served, and its connection was closed at once.
+    Busy {
+        /// The host turned away.
+        refused: SocketAddr,
+        /// The host being served.
+        serving: SocketAddr,
+    },
+    /// A host's session ended, and why.
+    Ended(SocketAddr, SessionEnd),
+}
+
+/// How often a TCP session's device looks at the idle time-out while it waits for bytes.
+const IDLE_POLL: Duration = Duration::from_millis(100);
+
+/// Serves one TCP connection at a time, each with a fresh device (as a board reset between
+/// sessions would give), until `accept` fails. A board has one serial line: a host that
+/// connects while another is served is closed at once, before a byte, which the host's
+/// `replay` reports as a busy device. A host that sends nothing for `idle` while the device
+/// has nothing to do, or does not read what the device sends for as long, is dropped, so
+/// that a silent or vanished host does not keep the device. `on` hears each of these.
 pub fn serve_tcp(
     listener: &TcpListener,
     config: DetectConfig,
-    mut on_connect: impl FnMut(&TcpStream),
+    idle: Duration,
+    on: impl Fn(DeviceEvent) + Send + Sync + 'static,
 ) -> io::Result<()> {
+    let on = Arc::new(on);
+    // The host being served, if any; cleared by its session's thread as it ends.
+    let serving: Arc<Mutex<Option<SocketAddr>>> = Arc::default();
     loop {
-        let (stream, _) = listener.accept()?;
-        stream.set_nodelay(true)?;
-        on_connect(&stream);
-        let reader = stream.try_clone()?;
-        VirtualDevice::spawn(config, options(), reader, stream).join();
+        let (stream, addr) = listener.accept()?;
+        let busy_with = *serving.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(other) = busy_with {
+            let _ = stream.shutdown(Shutdown::Both);
+            on(DeviceEvent::Busy { refused: addr, serving: other });
+            continue;
+        }
+        // A connection that fails its set-up already is the host's loss, not the device's end.
+        let session = stream
+            .set_nodelay(true)
+            .and_then(|()| stream.set_read_timeout(Some(IDLE_POLL.min(idle).max(Duration::from_millis(1)))))
+            .and_then(|()| stream.set_write_timeout(Some(idle.max(Duration::from_millis(1)))))
+            .and_then(|()| stream.try_clone());
+        let reader = match session {
+            Ok(r) => r,
+            Err(e) => {
+                on(DeviceEvent::Ended(addr, SessionEnd::Failed(e)));
+                continue;
+            }
+        };
+        *serving.lock().unwrap_or_else(|p| p.into_inner()) = Some(addr);
+        on(DeviceEvent::Connected(addr));
+        let (on, serving) = (Arc::clone(&on), Arc::clone(&serving));
+        let spawned = std::thread::Builder::new().name("evcal-virtual-device".into()).spawn(move || {
+            let (_, end) = serve(config, options(), reader, stream, Some(idle));
+            *serving.lock().unwrap_or_else(|p| p.into_inner()) = None;
+            on(DeviceEvent::Ended(addr, end));
+        });
+        spawned?;
     }
 }
 

@@ -6,7 +6,9 @@
 //! that need random access (HDF5, AEDAT4's data table, a bag's index) copy a stream to a
 //! temporary file first; a second pass over a stream (guessing the sensor size before
 //! detecting) reads a copy kept while the first pass read ([`Tee`]). Both cost disk, never
-//! memory.
+//! memory: the first up to [`SPOOL_MAX_BYTES`], in a file that [`remove_spools`] removes
+//! when the process is interrupted; the second in a file without a name, gone with the
+//! process.
 
 use super::ReadError;
 use std::{
@@ -15,6 +17,7 @@ use std::{
     io::{Read, Seek, SeekFrom, Write},
     path::{Path, PathBuf},
     rc::Rc,
+    sync::Mutex,
 };
 
 /// The name standard input is given in messages.
@@ -85,18 +88,93 @@ impl Input {
         Peeked { head: self.head, at: 0, rest: self.rest }
     }
 
-    /// Copies the whole input into a temporary file (for readers that need random access).
-    pub fn spool(self) -> Result<tempfile::TempPath, ReadError> {
+    /// Copies the whole input into a temporary file (for readers that need random access),
+    /// up to [`SPOOL_MAX_BYTES`].
+    pub fn spool(self) -> Result<Spool, ReadError> {
+        self.spool_up_to(SPOOL_MAX_BYTES)
+    }
+
+    /// [`Input::spool`] with a cap of `max` bytes.
+    fn spool_up_to(self, max: u64) -> Result<Spool, ReadError> {
         let name = self.name.clone();
         let err = |e: std::io::Error| {
             ReadError::new(&name, super::Position::File, format!("cannot copy the stream to a temporary file: {e}"))
         };
-        let mut tmp = tempfile::NamedTempFile::new().map_err(err)?;
-        let mut r = self.into_reader();
-        std::io::copy(&mut r, tmp.as_file_mut()).map_err(err)?;
-        tmp.as_file_mut().flush().map_err(err)?;
-        Ok(tmp.into_temp_path())
+        let (mut file, spool) = Spool::new().map_err(err)?;
+        let mut r = self.into_reader().take(max.saturating_add(1));
+        let copied = std::io::copy(&mut r, &mut file).map_err(err)?;
+        if copied > max {
+            return Err(ReadError::new(
+                &name,
+                super::Position::File,
+                format!(
+                    "a stream in a format that needs random access is copied to a temporary file first, up to {} MiB, and this one is longer: give the file's path instead of a pipe",
+                    max >> 20
+                ),
+            ));
+        }
+        file.flush().map_err(err)?;
+        Ok(spool)
     }
+}
+
+/// The most bytes of a stream copied to a temporary file ([`Input::spool`]): 4 GiB. A
+/// temporary folder is often in memory (tmpfs, half the RAM); a file larger than this is
+/// read from its path, where it is already on disk.
+pub const SPOOL_MAX_BYTES: u64 = 4 << 30;
+
+/// The spools on disk, for [`remove_spools`]; a spool is created and removed under the lock,
+/// so that none is made between their removal and the process's end.
+static SPOOLS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary copy of a stream, removed when dropped (or by [`remove_spools`]).
+pub struct Spool(Option<tempfile::TempPath>);
+
+impl Spool {
+    /// A new empty spool in the temporary folder, registered, and its file to write to.
+    fn new() -> std::io::Result<(File, Self)> {
+        let mut spools = SPOOLS.lock().unwrap_or_else(|p| p.into_inner());
+        let (file, path) = tempfile::NamedTempFile::new()?.into_parts();
+        spools.push(path.to_path_buf());
+        Ok((file, Self(Some(path))))
+    }
+}
+
+impl std::ops::Deref for Spool {
+    type Target = Path;
+
+    fn deref(&self) -> &Path {
+        self.0.as_deref().unwrap_or(Path::new(""))
+    }
+}
+
+impl AsRef<Path> for Spool {
+    fn as_ref(&self) -> &Path {
+        self
+    }
+}
+
+impl Drop for Spool {
+    fn drop(&mut self) {
+        let mut spools = SPOOLS.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(path) = self.0.take() {
+            spools.retain(|p| p.as_path() != &*path);
+            // Removes the file, under the lock.
+            drop(path);
+        }
+    }
+}
+
+/// Removes every temporary copy of a stream still on disk, and keeps any more from being
+/// made: for a process about to end on Ctrl-C or SIGTERM, where no destructor runs. Waits
+/// for a spool being created or removed.
+pub fn remove_spools() {
+    let spools = SPOOLS.lock().unwrap_or_else(|p| p.into_inner());
+    for p in spools.iter() {
+        let _ = std::fs::remove_file(p);
+    }
+    // The lock is held until the process ends: no spool is made after this.
+    std::mem::forget(spools);
 }
 
 /// The bytes peeked while choosing the format, then the rest of the input.
@@ -211,6 +289,21 @@ mod test {
         assert_eq!(quote("\u{feff}0.1 2".as_bytes(), 40), "\\u{feff}0.1 2");
         assert_eq!(quote(b"\0\xff a", 40), "\\0\\xff a");
         assert_eq!(quote(&[b'a'; 100], 4), "aaaa…");
+    }
+
+    #[test]
+    fn spools_are_capped_and_removed() {
+        let data = vec![7u8; 3000];
+        let i = Input::stream(Path::new("<stdin>"), Box::new(std::io::Cursor::new(data.clone())));
+        let spool = i.spool_up_to(3000).unwrap();
+        assert_eq!(std::fs::read(&*spool).unwrap(), data);
+        let path = spool.to_path_buf();
+        assert!(SPOOLS.lock().unwrap().contains(&path));
+        drop(spool);
+        assert!(!path.exists() && !SPOOLS.lock().unwrap().contains(&path));
+        let i = Input::stream(Path::new("<stdin>"), Box::new(std::io::Cursor::new(data)));
+        let e = i.spool_up_to(2999).err().unwrap().to_string();
+        assert!(e.starts_with("<stdin>: ") && e.contains("give the file's path"), "{e}");
     }
 
     #[test]

@@ -20,7 +20,7 @@ mod text;
 
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
-pub use bytes::{quote, STDIN_NAME};
+pub use bytes::{quote, remove_spools, Spool, SPOOL_MAX_BYTES, STDIN_NAME};
 pub use h5::{write_ecalib_h5, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
 pub use text::{write_text, TextReader, MAX_LINE};
@@ -249,7 +249,7 @@ enum Origin {
     /// A file: open it again.
     File(PathBuf),
     /// A stream copied to a temporary file first (a format that needs random access).
-    Spooled(PathBuf, Rc<tempfile::TempPath>),
+    Spooled(PathBuf, Rc<bytes::Spool>),
     /// A stream read through a copy.
     Tee(PathBuf, TeeHandle),
     /// A stream, not kept.
