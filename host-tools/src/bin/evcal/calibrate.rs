@@ -2,13 +2,14 @@
 //! users paste into their stack.
 
 use crate::common::{
-    check_writable, outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+    check_output, discard_on_ctrl_c, outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs,
+    ReadArgs, StdoutClosed,
 };
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
-    export::{write_all, Export},
+    export::{atomic, remove_stale, write_all, Export, FILE_NAMES},
     input::detections::{self, WindowRecord},
     input::recording::parse_sensor,
     pipeline::{
@@ -204,21 +205,89 @@ pub fn check_spacing(spacing: f64) -> Result<()> {
     Ok(())
 }
 
-/// Checks that the outputs can be written, before any work.
-pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
+/// Checks that the outputs can be written, before any work: `out` a folder (or nothing yet),
+/// its files and `json` neither links nor folders nor one of `inputs`, and `json` not one of
+/// the folder's other files.
+pub fn check_outputs(out: &Path, json: Option<&Path>, inputs: &[(&str, &Path)]) -> Result<()> {
     if out.exists() && !out.is_dir() {
         bail!("--out {}: exists and is not a folder", out.display());
     }
+    if out.is_dir() {
+        for name in FILE_NAMES {
+            check_output(&out.join(name), "--out", inputs)?;
+        }
+    }
     if let Some(j) = json {
-        check_writable(j, "--json")?;
+        check_output(j, "--json", inputs)?;
+        for name in &FILE_NAMES[1..] {
+            if atomic::same_file(j, &out.join(name)) {
+                bail!("--json {}: is --out's {name}, which calibrate writes too; give another name", j.display());
+            }
+        }
     }
     Ok(())
+}
+
+/// The input exists, or is standard input: a mistyped name is an options error, said before
+/// anything else happens (an error after the checks removes an earlier run's results).
+fn check_input(input: &Path) -> Result<()> {
+    if input.as_os_str() != "-" {
+        std::fs::metadata(input).with_context(|| format!("{}: cannot open", input.display()))?;
+    }
+    Ok(())
+}
+
+/// `--radius`, checked against the pattern's spacing.
+fn radius(a: &CalibrateArgs, pattern: &Pattern) -> Result<Option<f64>> {
+    match a.target.radius {
+        Some(r) if !(r.is_finite() && r > 0.0 && r < 0.5 * pattern.spacing * std::f64::consts::SQRT_2) => bail!(
+            "--radius must be a positive number of metres below half the diagonal spacing ({:.4} m): circles would overlap",
+            0.5 * pattern.spacing * std::f64::consts::SQRT_2
+        ),
+        r => Ok(r),
+    }
 }
 
 pub fn run(a: CalibrateArgs) -> Result<()> {
     let pattern = Pattern::parse(&a.target.pattern, a.target.spacing).map_err(anyhow::Error::msg)?;
     check_spacing(a.target.spacing)?;
-    check_outputs(&a.out, a.json.as_deref())?;
+    check_outputs(&a.out, a.json.as_deref(), &[("the input", &a.input)])?;
+    check_input(&a.input)?;
+    radius(&a, &pattern)?;
+    a.solve.setup(pattern, [1, 1])?;
+    discard_on_ctrl_c();
+    let r = calibrate(&a, pattern);
+    if let Err(e) = &r {
+        if !e.chain().any(|c| c.is::<StdoutClosed>()) {
+            say_stale_removed(&a.out, a.json.as_deref(), a.quiet);
+        }
+    }
+    r
+}
+
+/// After a run that wrote no results: removes the earlier run's in `out` (and at `json`),
+/// which would otherwise be taken for this run's, and says so. Files evcal cannot tell it
+/// wrote are left, also said.
+pub fn say_stale_removed(out: &Path, json: Option<&Path>, quiet: bool) {
+    let s = remove_stale(out, json);
+    let list = |v: &[PathBuf]| v.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
+    if !s.removed.is_empty() {
+        // Said even with --quiet: files went away.
+        eprintln!("evcal: removed an earlier run's results, as this run gives none: {}", list(&s.removed));
+    }
+    if !s.left.is_empty() && !quiet {
+        eprintln!("evcal: note: left as they are (not known to be written by evcal): {}", list(&s.left));
+    }
+    for (p, e) in &s.failed {
+        eprintln!(
+            "evcal: warning: {}: an earlier run's result, and this run gives none, but it cannot be removed: {e}",
+            p.display()
+        );
+    }
+}
+
+/// The run after the options' checks.
+fn calibrate(a: &CalibrateArgs, pattern: Pattern) -> Result<()> {
     let from_events = !is_detections(&a.input)?;
     let (windows, size) = if !from_events {
         let Some(s) = a.core.sensor.as_deref() else {
@@ -236,21 +305,13 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             .with_context(|| a.input.display().to_string())?;
         (w, sensor)
     } else {
-        detect(&a, a.core.filled_discs)?
+        detect(a, a.core.filled_discs)?
     };
     if windows.is_empty() {
         bail!("{}: no detection windows (an empty file)", a.input.display());
     }
     let mut setup = a.solve.setup(pattern, [u32::from(size.width), u32::from(size.height)])?;
-    if let Some(r) = a.target.radius {
-        if !(r.is_finite() && r > 0.0 && r < 0.5 * pattern.spacing * std::f64::consts::SQRT_2) {
-            bail!(
-                "--radius must be a positive number of metres below half the diagonal spacing ({:.4} m): circles would overlap",
-                0.5 * pattern.spacing * std::f64::consts::SQRT_2
-            );
-        }
-        setup.circle_radius = Some(r);
-    }
+    setup.circle_radius = radius(a, &pattern)?;
     if !a.quiet {
         eprintln!(
             "evcal: target {}x{} asymmetric circle grid, spacing {} m, as seen from the front:\n{}",
@@ -263,7 +324,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let views = find_views(&windows, &setup, a.quiet);
     let result = calibrate_views(&views, &setup);
     let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
-        with_discs_if_rings_failed(&a, &setup, views, result)?
+        with_discs_if_rings_failed(a, &setup, views, result)?
     } else {
         if !from_events && !a.quiet {
             if let Some(why) = no_calibration(&result) {
@@ -586,11 +647,8 @@ pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Re
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
     e.failure = o.failure.as_deref();
+    e.json_copy = json;
     let written = write_all(dir, &e)?;
-    if let Some(j) = json {
-        std::fs::copy(&written.paths[0], j)
-            .with_context(|| format!("{}: cannot write the JSON result", j.display()))?;
-    }
     Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
 }
 
