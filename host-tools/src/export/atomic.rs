@@ -162,11 +162,13 @@ pub fn check_output(path: &Path, what: &str, inputs: &[(&str, &Path)]) -> Result
             }
             for &(other, input) in inputs {
                 if input_is(input, &m) {
+                    let other_path =
+                        if input.as_os_str() == "-" { PathBuf::from("- (standard input)") } else { input.into() };
                     return Err(OutputError::SameFile {
                         what,
                         path: path.into(),
                         other: other.to_string(),
-                        other_path: input.into(),
+                        other_path,
                     });
                 }
             }

@@ -210,7 +210,8 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     }
     let report = path(FILE_NAMES[4]);
     let png = render_report(&report, cal, export.views, export.origins, export.timeline)?;
-    let mut contents: Vec<(PathBuf, &[u8])> = FILE_NAMES.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
+    let mut contents: Vec<(PathBuf, &[u8])> =
+        FILE_NAMES.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
     contents.push((report, &png));
     // Every file written before any is put in place.
     let mut staged = Vec::with_capacity(contents.len() + 1);

@@ -109,7 +109,8 @@ fn render(
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let png_error = |e: png::EncodingError| format!("encoding the PNG: {e}");
-    enc.add_text_chunk("Software".into(), format!("{PNG_SOFTWARE} {}", env!("CARGO_PKG_VERSION"))).map_err(png_error)?;
+    enc.add_text_chunk("Software".into(), format!("{PNG_SOFTWARE} {}", env!("CARGO_PKG_VERSION")))
+        .map_err(png_error)?;
     let mut writer = enc.write_header().map_err(png_error)?;
     writer.write_image_data(&rgb).map_err(png_error)?;
     writer.finish().map_err(png_error)?;

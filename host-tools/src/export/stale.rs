@@ -14,22 +14,8 @@ pub const YAML_MARK: &str = "# written by evcal";
 
 /// The calibration JSON's first keys, which never change (docs/formats.md): a JSON file with
 /// all of them is evcal's result, of any version.
-const JSON_KEYS: [&str; 14] = [
-    "fx",
-    "fy",
-    "cx",
-    "cy",
-    "k1",
-    "k2",
-    "p1",
-    "p2",
-    "k3",
-    "rms_px",
-    "views_used",
-    "windows",
-    "detections",
-    "per_view",
-];
+const JSON_KEYS: [&str; 14] =
+    ["fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "rms_px", "views_used", "windows", "detections", "per_view"];
 
 /// Larger files are no result of evcal's (a calibration.json of 500 views is about 200 kB),
 /// and are not read to find out.

@@ -7,6 +7,7 @@ use crate::common::{
 };
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
     export::{atomic, remove_stale, write_all, Export, FILE_NAMES},
@@ -255,8 +256,21 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     check_input(&a.input)?;
     radius(&a, &pattern)?;
     a.solve.setup(pattern, [1, 1])?;
+    let sensor = a.core.sensor.as_deref().map(parse_sensor).transpose().map_err(anyhow::Error::msg)?;
+    // The detection options alone (they do not depend on the sensor); the core checks them
+    // again with the sensor.
+    a.core.config(sensor.unwrap_or(SensorSize::DAVIS346))?;
+    let from_events = !is_detections(&a.input)?;
+    let sensor = match sensor {
+        Some(s) => Some(s),
+        None if from_events => None,
+        None => bail!(
+            "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
+            a.input.display()
+        ),
+    };
     discard_on_ctrl_c();
-    let r = calibrate(&a, pattern);
+    let r = calibrate(&a, pattern, from_events, sensor);
     if let Err(e) = &r {
         if !e.chain().any(|c| c.is::<StdoutClosed>()) {
             say_stale_removed(&a.out, a.json.as_deref(), a.quiet);
@@ -287,19 +301,10 @@ pub fn say_stale_removed(out: &Path, json: Option<&Path>, quiet: bool) {
 }
 
 /// The run after the options' checks.
-fn calibrate(a: &CalibrateArgs, pattern: Pattern) -> Result<()> {
-    let from_events = !is_detections(&a.input)?;
-    let (windows, size) = if !from_events {
-        let Some(s) = a.core.sensor.as_deref() else {
-            bail!(
-                "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
-                a.input.display()
-            )
-        };
-        let sensor = parse_sensor(s).map_err(anyhow::Error::msg)?;
-        // The detection options do not apply to detections made already, but a bad value is
-        // still a mistake to say rather than ignore.
-        a.core.config(sensor)?;
+///
+/// `sensor`: given, or for a recording `None` to take from it. The options were checked.
+fn calibrate(a: &CalibrateArgs, pattern: Pattern, from_events: bool, sensor: Option<SensorSize>) -> Result<()> {
+    let (windows, size) = if let (false, Some(sensor)) = (from_events, sensor) {
         let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
         let w = detections::read_jsonl_in_order(std::io::BufReader::new(f))
             .with_context(|| a.input.display().to_string())?;

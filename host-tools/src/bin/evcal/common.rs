@@ -464,7 +464,10 @@ impl Output {
             Sink::Stdout(mut w) => w.flush().map_err(stdout_error),
             Sink::File(w) => {
                 let path = self.path.unwrap_or_default();
-                let f = w.into_inner().map_err(|e| e.into_error()).with_context(|| format!("writing {}", path.display()))?;
+                let f = w
+                    .into_inner()
+                    .map_err(|e| e.into_error())
+                    .with_context(|| format!("writing {}", path.display()))?;
                 Ok(f.commit()?)
             }
         }

@@ -7,8 +7,8 @@ use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
     calib::Intrinsics,
-    export::atomic::AtomicFile,
     eval::{self, ScoreRules},
+    export::atomic::AtomicFile,
     input::detections::WindowRecord,
     input::link::replay::replay_virtual,
     pipeline::Setup,
