@@ -223,3 +223,65 @@ fn a_failed_calibrate_removes_the_earlier_run_s_results_only() {
     assert!(!err.contains("removed"), "{err}");
     assert_eq!(names(&out).len(), 6);
 }
+
+/// `collect -o` writes into a temporary file, put in place on Ctrl-C with what arrived (here
+/// from a device that sends nothing); `detect -o` interrupted leaves its file as it was.
+/// Neither leaves a temporary file.
+#[cfg(unix)]
+#[test]
+fn ctrl_c_keeps_what_collect_received_and_leaves_detect_s_file_as_it_was() {
+    use std::{process::Stdio, time::Duration};
+    let dir = tempfile::tempdir().unwrap();
+    let interrupt = |c: &std::process::Child| {
+        assert!(std::process::Command::new("kill").args(["-INT", &c.id().to_string()]).status().unwrap().success());
+    };
+    // Whether a temporary file of `name` is in the folder.
+    let temp_of = |name: &str| {
+        let prefix = format!(".{name}.");
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .any(|e| e.unwrap().file_name().into_string().unwrap().starts_with(&prefix))
+    };
+    let wait_for = |name: &str, c: &mut std::process::Child| {
+        let start = std::time::Instant::now();
+        while !temp_of(name) && c.try_wait().unwrap().is_none() && start.elapsed() < Duration::from_secs(30) {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    };
+    // A device that accepts the link and says nothing.
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = listener.local_addr().unwrap().port();
+    let quiet_device = std::thread::spawn(move || listener.accept().map(|(link, _)| link));
+    let out = dir.path().join("col.jsonl");
+    std::fs::write(&out, "earlier\n").unwrap();
+    let mut collect = super::evcal_command()
+        .args(["collect", "--port", &format!("tcp:127.0.0.1:{port}"), "-o", s(&out), "-q"])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    wait_for("col.jsonl", &mut collect);
+    // Until the end the earlier file is whole: a write cut short never leaves a torn one.
+    assert_eq!(std::fs::read(&out).unwrap(), b"earlier\n");
+    interrupt(&collect);
+    let o = collect.wait_with_output().unwrap();
+    drop(quiet_device.join().unwrap());
+    assert_eq!(o.status.code(), Some(130), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read(&out).unwrap(), b"", "what arrived (nothing) replaces the earlier file");
+    // detect: its file as it was.
+    let sensor = evcal_core::event::SensorSize::DAVIS346;
+    let rec = dir.path().join("long.txt");
+    evcal_host::input::recording::write_text(&rec, Some(sensor), &super::events(400_000, sensor, 7)).unwrap();
+    let det = dir.path().join("det.jsonl");
+    std::fs::write(&det, "earlier\n").unwrap();
+    let mut detect = super::evcal_command().args(["detect", s(&rec), "-o", s(&det), "-q"]).spawn().unwrap();
+    wait_for("det.jsonl", &mut detect);
+    interrupt(&detect);
+    let status = detect.wait().unwrap();
+    // Finished first on a fast machine: then the file is whole.
+    if status.code() == Some(130) {
+        assert_eq!(std::fs::read_to_string(&det).unwrap(), "earlier\n");
+    } else {
+        assert_eq!(status.code(), Some(0));
+    }
+    assert_eq!(names(dir.path()), ["col.jsonl", "det.jsonl", "long.txt"], "no temporary file left");
+}
