@@ -895,3 +895,8 @@ fn simulate_follows_recorded_poses_and_refuses_bad_ones() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("cannot be used with"), "{err}");
 }
+
+// ---- outputs that would clobber something (issue 46) ----------------------------------------
+
+#[path = "hostile_input/outputs.rs"]
+mod outputs;

@@ -24,12 +24,15 @@
 //! YAML, and the layouts here are the ones those tools write themselves. Every number is
 //! written with the shortest digits that read back to the same `f64`.
 
+pub mod atomic;
 mod json;
 mod report;
+mod stale;
 mod yaml;
 
 pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
-pub use report::{write_report, REPORT_SIZE};
+pub use report::{render_report, write_report, REPORT_SIZE};
+pub use stale::{remove_stale, written_by_evcal, Stale, YAML_MARK};
 pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
 
 use crate::calib::{Calibration, View};
@@ -40,6 +43,9 @@ use std::path::{Path, PathBuf};
 /// mismatch between the calibration and what was handed over with it.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {
+    /// An output was refused or could not be written ([`atomic`]).
+    #[error(transparent)]
+    Output(#[from] atomic::OutputError),
     /// A file or directory could not be written.
     #[error("{}: {what}", path.display())]
     Io {
@@ -120,6 +126,10 @@ pub struct Export<'a> {
     /// Why the result is no calibration ([`crate::pipeline::verdict`]): every file says so
     /// (the JSON's `calibration_failed`, a comment at the top of each YAML file).
     pub failure: Option<&'a str>,
+    /// Another file to write the JSON result to (`evcal calibrate --json`), with the others:
+    /// all are in place or none is replaced. Nothing more when it is the folder's own
+    /// `calibration.json`.
+    pub json_copy: Option<&'a Path>,
 }
 
 impl<'a> Export<'a> {
@@ -147,6 +157,7 @@ impl<'a> Export<'a> {
             calibration_time: None,
             edge_shift: None,
             failure: None,
+            json_copy: None,
         }
     }
 }
@@ -167,6 +178,12 @@ pub const FILE_NAMES: [&str; 5] =
 
 /// Writes every export into `dir` (made if missing) under the names of [`FILE_NAMES`];
 /// returns the paths and the warnings. Every error names the file it concerns.
+///
+/// Each file is written to a temporary file beside it first and all are renamed into place
+/// at the end ([`atomic`]): a failure (a report that cannot be drawn, a full disk) replaces
+/// none of an earlier run's files. A link at one of the names is replaced, not followed.
+/// Each YAML file ends with [`YAML_MARK`] and the report names evcal as its software, so
+/// that [`remove_stale`] can tell evcal's files from others.
 pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     std::fs::create_dir_all(dir).map_err(io_at(dir, "cannot create the directory"))?;
     let cal = export.calibration;
@@ -188,15 +205,32 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
             *t = marked_not_a_calibration(t, why);
         }
     }
-    for (name, text) in FILE_NAMES.iter().zip(texts) {
-        let p = path(name);
-        std::fs::write(&p, text).map_err(io_at(&p, "cannot write"))?;
-        written.paths.push(p);
+    for t in &mut texts[1..] {
+        t.push_str(&yaml_mark());
     }
-    let p = path(FILE_NAMES[4]);
-    write_report(&p, cal, export.views, export.origins, export.timeline)?;
-    written.paths.push(p);
+    let report = path(FILE_NAMES[4]);
+    let png = render_report(&report, cal, export.views, export.origins, export.timeline)?;
+    let mut contents: Vec<(PathBuf, &[u8])> =
+        FILE_NAMES.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
+    contents.push((report, &png));
+    // Every file written before any is put in place.
+    let mut staged = Vec::with_capacity(contents.len() + 1);
+    let copy = export.json_copy.filter(|j| !atomic::same_file(j, &contents[0].0));
+    for (p, bytes) in contents.iter().map(|(p, b)| (p.as_path(), *b)).chain(copy.map(|j| (j, texts[0].as_bytes()))) {
+        let mut f = atomic::AtomicFile::create(p)?;
+        std::io::Write::write_all(&mut f, bytes).map_err(io_at(p, "cannot write"))?;
+        staged.push(f);
+    }
+    for f in staged {
+        f.commit()?;
+    }
+    written.paths.extend(contents.into_iter().map(|(p, _)| p));
     Ok(written)
+}
+
+/// The line that ends each YAML file evcal writes: `# written by evcal VERSION`.
+fn yaml_mark() -> String {
+    format!("{YAML_MARK} {}\n", env!("CARGO_PKG_VERSION"))
 }
 
 /// `yaml` with a comment saying it is no calibration, and why: after OpenCV's `%YAML`
@@ -296,11 +330,18 @@ mod test {
         std::fs::write(&blocker, b"x").unwrap();
         let e = format!("{:#}", write_all(&blocker, &Export::new(&cal, &views, &origins, &timeline)).unwrap_err());
         assert!(e.contains("taken"), "{e}");
-        // One of the files is a directory.
+        // One of the files is a directory: none is put in place, and no temporary file is
+        // left behind.
         let out = dir.path().join("out");
         std::fs::create_dir_all(out.join("camera_info.yaml")).unwrap();
+        std::fs::write(out.join("calibration.json"), "earlier").unwrap();
         let e = format!("{:#}", write_all(&out, &Export::new(&cal, &views, &origins, &timeline)).unwrap_err());
         assert!(e.contains("camera_info.yaml"), "{e}");
+        let mut names: Vec<String> =
+            std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+        names.sort();
+        assert_eq!(names, ["calibration.json", "camera_info.yaml"]);
+        assert_eq!(std::fs::read(out.join("calibration.json")).unwrap(), b"earlier");
         // Origins missing for the views used.
         let e =
             format!("{:#}", write_all(dir.path(), &Export::new(&cal, &views, &origins[..3], &timeline)).unwrap_err());

@@ -5,7 +5,7 @@
 //! - where on the sensor the points were detected, with an 8×6 cell occupancy;
 //! - circle centres per detection window over time, with the windows whose grid was found.
 
-use super::{io_at, ExportError, Result};
+use super::{ExportError, Result};
 use crate::calib::{Calibration, View};
 use crate::views::{view_residuals, ViewOrigin, WindowSample};
 use plotters::coord::Shift;
@@ -60,7 +60,8 @@ fn font_ready() -> std::result::Result<(), String> {
 
 /// Draws the report of `cal` into a PNG at `path` ([`REPORT_SIZE`]). `views` are the views
 /// given to the solver, `origins` where each came from (used to mark the views on the
-/// timeline; may be empty), `timeline` every detection window (may be empty).
+/// timeline; may be empty), `timeline` every detection window (may be empty). Written to a
+/// temporary file renamed over `path` ([`super::atomic`]).
 pub fn write_report(
     path: &Path,
     cal: &Calibration,
@@ -68,12 +69,26 @@ pub fn write_report(
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
 ) -> Result<()> {
-    let png = render(cal, views, origins, timeline)
-        .map_err(|message| ExportError::Report { path: path.to_path_buf(), message })?;
-    std::fs::write(path, png).map_err(io_at(path, "cannot write"))
+    let png = render_report(path, cal, views, origins, timeline)?;
+    Ok(super::atomic::write_file(path, &png)?)
 }
 
-/// The report as PNG bytes. Drawn into memory, so that a failure leaves no half-drawn file.
+/// The PNG bytes [`write_report`] writes to `path` (named in errors). Drawn into memory, so
+/// that a failure leaves no half-drawn file. The PNG names evcal as its `Software`
+/// ([`PNG_SOFTWARE`]).
+pub fn render_report(
+    path: &Path,
+    cal: &Calibration,
+    views: &[View],
+    origins: &[ViewOrigin],
+    timeline: &[WindowSample],
+) -> Result<Vec<u8>> {
+    render(cal, views, origins, timeline).map_err(|message| ExportError::Report { path: path.to_path_buf(), message })
+}
+
+/// The start of the `Software` text of every report: how [`super::remove_stale`] knows one.
+pub const PNG_SOFTWARE: &str = "evcal";
+
 fn render(
     cal: &Calibration,
     views: &[View],
@@ -94,6 +109,8 @@ fn render(
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
     let png_error = |e: png::EncodingError| format!("encoding the PNG: {e}");
+    enc.add_text_chunk("Software".into(), format!("{PNG_SOFTWARE} {}", env!("CARGO_PKG_VERSION")))
+        .map_err(png_error)?;
     let mut writer = enc.write_header().map_err(png_error)?;
     writer.write_image_data(&rgb).map_err(png_error)?;
     writer.finish().map_err(png_error)?;

@@ -2,14 +2,14 @@
 //! users paste into their stack.
 
 use crate::common::{
-    check_writable, outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+    outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs, StdoutClosed,
 };
 use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
+use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
-    export::{write_all, Export},
     input::detections::{self, WindowRecord},
     input::recording::parse_sensor,
     pipeline::{
@@ -19,6 +19,9 @@ use evcal_host::{
     views::grid::Pattern,
 };
 use std::path::{Path, PathBuf};
+
+mod files;
+pub use files::{check_outputs, export, list_written, say_stale_removed};
 
 #[derive(Args)]
 pub struct CalibrateArgs {
@@ -181,13 +184,11 @@ fn is_detections(path: &Path) -> Result<bool> {
     Ok(head[..n].iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
 }
 
-/// Checks that the outputs can be written, before any work.
-pub fn check_outputs(out: &Path, json: Option<&Path>) -> Result<()> {
-    if out.exists() && !out.is_dir() {
-        bail!("--out {}: exists and is not a folder", out.display());
-    }
-    if let Some(j) = json {
-        check_writable(j, "--json")?;
+/// The input exists, or is standard input: a mistyped name is an options error, said before
+/// anything else happens (an error after the checks removes an earlier run's results).
+fn check_input(input: &Path) -> Result<()> {
+    if input.as_os_str() != "-" {
+        std::fs::metadata(input).with_context(|| format!("{}: cannot open", input.display()))?;
     }
     Ok(())
 }
@@ -198,25 +199,42 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     if let Some(r) = a.target.radius {
         ranges::check_radius(r, a.target.spacing)?;
     }
-    check_outputs(&a.out, a.json.as_deref())?;
+    check_outputs(&a.out, a.json.as_deref(), &[("the input", &a.input)])?;
+    check_input(&a.input)?;
+    a.solve.setup(pattern, [1, 1])?;
+    let sensor = a.core.sensor.as_deref().map(parse_sensor).transpose().map_err(anyhow::Error::msg)?;
+    // The detection options alone (they do not depend on the sensor); the core checks them
+    // again with the sensor.
+    a.core.config(sensor.unwrap_or(SensorSize::DAVIS346))?;
     let from_events = !is_detections(&a.input)?;
-    let (windows, size) = if !from_events {
-        let Some(s) = a.core.sensor.as_deref() else {
-            bail!(
-                "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
-                a.input.display()
-            )
-        };
-        let sensor = parse_sensor(s).map_err(anyhow::Error::msg)?;
-        // The detection options do not apply to detections made already, but a bad value is
-        // still a mistake to say rather than ignore.
-        a.core.config(sensor)?;
+    let sensor = match sensor {
+        Some(s) => Some(s),
+        None if from_events => None,
+        None => bail!(
+            "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
+            a.input.display()
+        ),
+    };
+    let r = calibrate(&a, pattern, from_events, sensor);
+    if let Err(e) = &r {
+        if !e.chain().any(|c| c.is::<StdoutClosed>()) {
+            say_stale_removed(&a.out, a.json.as_deref(), a.quiet);
+        }
+    }
+    r
+}
+
+/// The run after the options' checks.
+///
+/// `sensor`: given, or for a recording `None` to take from it. The options were checked.
+fn calibrate(a: &CalibrateArgs, pattern: Pattern, from_events: bool, sensor: Option<SensorSize>) -> Result<()> {
+    let (windows, size) = if let (false, Some(sensor)) = (from_events, sensor) {
         let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
         let w = detections::read_jsonl_in_order(std::io::BufReader::new(f))
             .with_context(|| a.input.display().to_string())?;
         (w, sensor)
     } else {
-        detect(&a, a.core.filled_discs)?
+        detect(a, a.core.filled_discs)?
     };
     if windows.is_empty() {
         bail!("{}: no detection windows (an empty file)", a.input.display());
@@ -235,7 +253,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     let views = find_views(&windows, &setup, a.quiet);
     let result = calibrate_views(&views, &setup);
     let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
-        with_discs_if_rings_failed(&a, &setup, views, result)?
+        with_discs_if_rings_failed(a, &setup, views, result)?
     } else {
         if !from_events && !a.quiet {
             if let Some(why) = no_calibration(&result) {
@@ -546,46 +564,6 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
     )?;
     for w in c.warnings.iter().chain(&o.advice) {
         outln!("warning: {w}")?;
-    }
-    Ok(())
-}
-
-/// Writes every output into `dir`, and the JSON result to `json` too. Done before anything
-/// is printed, so that a reader closing standard output early (`| head`) cannot leave the
-/// files unwritten or stale from an earlier run.
-pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<Written> {
-    let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
-    e.kalibr_calibration = o.without_k3.as_ref();
-    e.edge_shift = o.edge_shift;
-    e.failure = o.failure.as_deref();
-    let written = write_all(dir, &e)?;
-    if let Some(j) = json {
-        std::fs::copy(&written.paths[0], j)
-            .with_context(|| format!("{}: cannot write the JSON result", j.display()))?;
-    }
-    Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
-}
-
-/// What [`export`] wrote, to list after the report.
-pub struct Written {
-    files: evcal_host::export::Written,
-    json: Option<PathBuf>,
-    without_k3: bool,
-}
-
-/// Lists what [`export`] wrote, with its notes.
-pub fn list_written(w: &Written) -> Result<()> {
-    if w.without_k3 {
-        outln!(
-            "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
-        )?;
-    }
-    for warning in &w.files.warnings {
-        outln!("warning: {warning}")?;
-    }
-    outln!("wrote:")?;
-    for p in w.files.paths.iter().chain(&w.json) {
-        outln!("  {}", p.display())?;
     }
     Ok(())
 }

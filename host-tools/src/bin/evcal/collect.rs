@@ -1,6 +1,6 @@
 //! `evcal collect`: record the detections of a device that has its own sensor.
 
-use crate::common::{check_writable, exit_interrupted, output, spinner, stop_on_ctrl_c, LinkArgs};
+use crate::common::{check_output, exit_interrupted, output, spinner, stop_on_ctrl_c, LinkArgs};
 use crate::ranges;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -14,7 +14,8 @@ use std::{path::PathBuf, time::Duration};
 pub struct CollectArgs {
     #[command(flatten)]
     pub link: LinkArgs,
-    /// Write the JSON lines here instead of standard output.
+    /// Write the JSON lines here instead of standard output (`-`). Written to a temporary
+    /// file renamed into place at the end; Ctrl-C and errors keep what arrived.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Stop after this many seconds, 0.001 to a year (default: until Ctrl-C or the link
@@ -32,7 +33,7 @@ pub struct CollectArgs {
 pub fn run(a: CollectArgs) -> Result<()> {
     let duration = a.seconds;
     if let Some(o) = &a.out {
-        check_writable(o, "--out")?;
+        check_output(o, "--out", &[])?;
     }
     let stop = stop_on_ctrl_c();
     let link = a.link.open(stop)?;
@@ -52,11 +53,12 @@ pub fn run(a: CollectArgs) -> Result<()> {
         Progress::Status(r) => pb.set_prefix(status(r)),
     });
     pb.finish_and_clear();
-    let flushed = out.flush();
+    // Whatever happened, keep what arrived, but for a failed write: the file would end
+    // torn, so it is left as it was.
     if let Some(e) = write_err {
         return Err(e.context("writing detections"));
     }
-    flushed.context("writing detections")?;
+    out.finish().context("writing detections")?;
     let r = result?;
     if !a.quiet {
         eprintln!(

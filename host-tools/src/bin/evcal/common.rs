@@ -13,6 +13,7 @@ use evcal_core::{
 };
 use evcal_host::input::recording::remove_spools;
 use evcal_host::{
+    export::atomic::{self, AtomicFile},
     input::detections,
     input::recording::{guess_sensor, parse_sensor, OpenOptions, Recording, TimeUnit},
     sim::{FrameTruth, SimConfig, Simulator},
@@ -314,9 +315,12 @@ pub fn window_truths(events: &[Event], sim: &Simulator, window: WindowConfig) ->
     events.iter().filter_map(|e| w.push(*e)).map(|info| (info.seq, sim.truth_at(info.t_ref_us))).collect()
 }
 
-pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)]) -> serde_json::Value {
+/// The truth of `windows`, for the recording whose file name is `recording` (so that a later
+/// run can tell whose truth a `truth.json` is).
+pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)], recording: &str) -> serde_json::Value {
     let c = sim.config();
     serde_json::json!({
+        "recording": recording,
         "camera": c.camera,
         "board": { "rows": c.board.rows, "cols": c.board.cols, "spacing": c.board.spacing, "radius": c.board.radius },
         "trajectory": c.trajectory.name(),
@@ -329,9 +333,12 @@ pub fn truth_json(sim: &Simulator, windows: &[(u32, FrameTruth)]) -> serde_json:
     })
 }
 
+/// Writes `v` to `path` through a temporary file renamed over it.
 pub fn write_json(path: &Path, v: &serde_json::Value) -> Result<()> {
-    let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    serde_json::to_writer(BufWriter::new(f), v).with_context(|| format!("writing {}", path.display()))
+    let mut w = BufWriter::new(AtomicFile::create(path)?);
+    serde_json::to_writer(&mut w, v).with_context(|| format!("writing {}", path.display()))?;
+    w.into_inner().map_err(|e| e.into_error()).with_context(|| format!("writing {}", path.display()))?.commit()?;
+    Ok(())
 }
 
 /// Where the device is and how to reach it.
@@ -372,8 +379,9 @@ static STOP: AtomicBool = AtomicBool::new(false);
 /// signal ends the process at once.
 static COOPERATIVE: AtomicBool = AtomicBool::new(false);
 
-/// Handles Ctrl-C, SIGTERM and SIGHUP for every command: the temporary copies of streams are
-/// removed ([`remove_spools`]) and the process ends at once with status 130, unless the
+/// Handles Ctrl-C, SIGTERM and SIGHUP for every command: the temporary copies of streams
+/// ([`remove_spools`]) and the outputs still being written ([`atomic::remove_unfinished`],
+/// each target left as it was) are removed and the process ends at once with status 130, unless the
 /// command stops by itself ([`stop_on_ctrl_c`]); a second signal then ends it at once.
 pub fn handle_signals() {
     // Only fails if a handler is already set, and then that one stops us.
@@ -381,6 +389,7 @@ pub fn handle_signals() {
         let again = STOP.swap(true, Ordering::SeqCst);
         if again || !COOPERATIVE.load(Ordering::SeqCst) {
             remove_spools();
+            atomic::remove_unfinished();
             // Not `exit`: its handlers (HDF5's library shutdown among them) would run while
             // the main thread may be inside HDF5.
             #[cfg(unix)]
@@ -408,6 +417,7 @@ pub fn stop_on_ctrl_c() -> &'static AtomicBool {
 /// Ends a command that stopped on Ctrl-C: temporary copies removed, status 130.
 pub fn exit_interrupted() -> ! {
     remove_spools();
+    atomic::remove_unfinished();
     std::process::exit(EXIT_INTERRUPTED)
 }
 
@@ -451,55 +461,66 @@ macro_rules! outln {
 }
 pub(crate) use outln;
 
-/// Where a command's JSON lines go: standard output or a created file, buffered.
+/// Where a command's JSON lines go: standard output, or a file written through a temporary
+/// file beside it ([`AtomicFile`]), buffered.
 pub struct Output {
-    w: Box<dyn Write>,
+    w: Sink,
     /// The file; `None` for standard output.
     path: Option<std::path::PathBuf>,
+}
+
+enum Sink {
+    Stdout(BufWriter<std::io::StdoutLock<'static>>),
+    File(BufWriter<AtomicFile>),
 }
 
 impl Output {
     /// Writes one line.
     pub fn line(&mut self, line: &str) -> Result<()> {
-        writeln!(self.w, "{line}").map_err(|e| self.error(e))
+        let r = match &mut self.w {
+            Sink::Stdout(w) => writeln!(w, "{line}"),
+            Sink::File(w) => writeln!(w, "{line}"),
+        };
+        r.map_err(|e| self.error(e))
     }
 
-    pub fn flush(&mut self) -> Result<()> {
-        self.w.flush().map_err(|e| self.error(e))
+    /// Flushes what was written and puts the file in place (renamed over the target). Not
+    /// called, the file is left as it was: the way to give up after an error.
+    pub fn finish(self) -> Result<()> {
+        match self.w {
+            Sink::Stdout(mut w) => w.flush().map_err(stdout_error),
+            Sink::File(w) => {
+                let path = self.path.unwrap_or_default();
+                let f = w
+                    .into_inner()
+                    .map_err(|e| e.into_error())
+                    .with_context(|| format!("writing {}", path.display()))?;
+                Ok(f.commit()?)
+            }
+        }
     }
 
     fn error(&self, e: std::io::Error) -> anyhow::Error {
         match &self.path {
             None => stdout_error(e),
-            Some(p) => anyhow::Error::new(e).context(format!("writing {}", p.display())),
+            Some(p) => anyhow::Error::new(e).context(format!("writing {} (left as it was)", p.display())),
         }
     }
 }
 
-/// Checks before any work that `path` can be written: not a directory, its folder exists.
-/// A run that fails only at its end, after minutes of work and other files written, is the
-/// worse failure.
-pub fn check_writable(path: &Path, what: &str) -> Result<()> {
-    if path.is_dir() {
-        bail!("{what} {}: is a directory; give a file name", path.display());
-    }
-    let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    if !parent.is_dir() {
-        bail!("{what} {}: the folder {} does not exist", path.display(), parent.display());
-    }
-    Ok(())
+/// Checks before any work that `path` may be written as the output `what`: not a link, not
+/// a directory, its folder exists, and not the same file as any of `inputs` (description,
+/// path; `-` is standard input). A run that fails only at its end, after minutes of work, is
+/// the worse failure; an output that destroys an input, worse still.
+pub fn check_output(path: &Path, what: &str, inputs: &[(&str, &Path)]) -> Result<()> {
+    Ok(atomic::check_output(path, what, inputs)?)
 }
 
-/// Standard output or a created file, buffered.
+/// Standard output (no path, or `-`) or a file written through a temporary file, buffered.
 pub fn output(path: Option<&Path>) -> Result<Output> {
-    Ok(match path {
-        Some(p) => Output {
-            w: Box::new(BufWriter::new(
-                std::fs::File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-            )),
-            path: Some(p.to_path_buf()),
-        },
-        None => Output { w: Box::new(BufWriter::new(std::io::stdout().lock())), path: None },
+    Ok(match path.filter(|p| p.as_os_str() != "-") {
+        Some(p) => Output { w: Sink::File(BufWriter::new(AtomicFile::create(p)?)), path: Some(p.to_path_buf()) },
+        None => Output { w: Sink::Stdout(BufWriter::new(std::io::stdout().lock())), path: None },
     })
 }
 

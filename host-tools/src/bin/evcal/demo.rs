@@ -1,13 +1,14 @@
 //! `evcal demo`: the main job on a built-in default, end to end with known truth.
 
-use crate::calibrate::{export, find_views, list_written, report, solve};
-use crate::common::{outln, run_windowed_simulation};
+use crate::calibrate::{check_outputs, export, find_views, list_written, report, say_stale_removed, solve};
+use crate::common::{check_output, outln, run_windowed_simulation, StdoutClosed};
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{
     calib::Intrinsics,
     eval::{self, ScoreRules},
+    export::atomic::AtomicFile,
     input::detections::WindowRecord,
     input::link::replay::replay_virtual,
     pipeline::Setup,
@@ -16,7 +17,7 @@ use evcal_host::{
 };
 use std::{
     io::{BufWriter, Write},
-    path::PathBuf,
+    path::{Path, PathBuf},
 };
 
 #[derive(Args)]
@@ -39,6 +40,25 @@ pub struct DemoArgs {
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
+    // Before any work: none of the files in --out a link or a folder.
+    check_outputs(&a.out, None, &[])?;
+    if a.out.is_dir() {
+        check_output(&a.out.join(DETECTIONS), "--out", &[])?;
+    }
+    let r = demo(&a);
+    if let Err(e) = &r {
+        if !e.chain().any(|c| c.is::<StdoutClosed>()) {
+            say_stale_removed(&a.out, None, a.quiet);
+        }
+    }
+    r
+}
+
+/// The detections' file in --out.
+const DETECTIONS: &str = "detections.jsonl";
+
+/// The demo after the checks.
+fn demo(a: &DemoArgs) -> Result<()> {
     let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, a.light, 1).context("built-in preset")?;
     let c = cfg.camera;
     let truth = Intrinsics { fx: c.fx, fy: c.fy, cx: c.cx, cy: c.cy, k1: c.k1, k2: c.k2, p1: c.p1, p2: c.p2, k3: c.k3 };
@@ -88,7 +108,7 @@ pub fn run(a: DemoArgs) -> Result<()> {
         score.rms_px()
     )?;
     std::fs::create_dir_all(&a.out).with_context(|| format!("{}: cannot create the directory", a.out.display()))?;
-    write_detections(&a.out.join("detections.jsonl"), &windows)?;
+    write_detections(&a.out.join(DETECTIONS), &windows)?;
 
     let setup = Setup::new(pattern, [u32::from(c.width), u32::from(c.height)]);
     let views = find_views(&windows, &setup, a.quiet);
@@ -96,15 +116,16 @@ pub fn run(a: DemoArgs) -> Result<()> {
     let written = export(&views, &outcome, &a.out, None)?;
     report(&views, &outcome, &setup, Some(&truth))?;
     list_written(&written)?;
-    outln!("  {}", a.out.join("detections.jsonl").display())?;
+    outln!("  {}", a.out.join(DETECTIONS).display())?;
     crate::calibrate::fail_if_no_calibration(&outcome, &a.out)
 }
 
-fn write_detections(path: &std::path::Path, windows: &[WindowRecord]) -> Result<()> {
-    let mut out =
-        BufWriter::new(std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?);
+fn write_detections(path: &Path, windows: &[WindowRecord]) -> Result<()> {
+    let cannot = || format!("{}: cannot write", path.display());
+    let mut out = BufWriter::new(AtomicFile::create(path)?);
     for w in windows {
-        writeln!(out, "{}", w.to_json_line()).with_context(|| format!("{}: cannot write", path.display()))?;
+        writeln!(out, "{}", w.to_json_line()).with_context(cannot)?;
     }
-    out.flush().with_context(|| format!("{}: cannot write", path.display()))
+    out.into_inner().map_err(|e| e.into_error()).with_context(cannot)?.commit()?;
+    Ok(())
 }

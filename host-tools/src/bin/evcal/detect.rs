@@ -1,7 +1,7 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
 use crate::common::{
-    check_writable, output, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+    check_output, output, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
 };
 use anyhow::{Context, Result};
 use clap::Args;
@@ -18,7 +18,8 @@ pub struct DetectArgs {
     pub read: ReadArgs,
     #[command(flatten)]
     pub core: CoreArgs,
-    /// Write the JSON lines here instead of standard output.
+    /// Write the JSON lines here instead of standard output (`-`). The file is replaced
+    /// only by a complete run: an error or Ctrl-C leaves it as it was.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// No progress bar or summary on standard error.
@@ -28,7 +29,7 @@ pub struct DetectArgs {
 
 pub fn run(a: DetectArgs) -> Result<()> {
     if let Some(o) = &a.out {
-        check_writable(o, "--out")?;
+        check_output(o, "--out", &[("the recording", &a.recording)])?;
     }
     let rec = a.read.open(&a.recording, a.quiet, a.core.sensor.is_none())?;
     let notes_at_open = rec.notes();
@@ -60,7 +61,17 @@ pub fn run(a: DetectArgs) -> Result<()> {
     if let Some(e) = write_err {
         return Err(e.context("writing detections"));
     }
-    out.flush().context("writing detections")?;
+    // A read error leaves the file as it was: detections of part of a recording are not
+    // to be taken for all of it (standard output still gets them as they come).
+    match &summary {
+        Ok(_) => out.finish().context("writing detections")?,
+        Err(_) => {
+            drop(out);
+            if let Some(o) = a.out.as_deref().filter(|o| o.as_os_str() != "-") {
+                eprintln!("evcal: note: {} not written (left as it was)", o.display());
+            }
+        }
+    }
     if !a.quiet {
         // What the reader noticed while reading (the notes of opening were printed then).
         for n in rec.notes().iter().filter(|n| !notes_at_open.contains(n)) {

@@ -49,7 +49,8 @@ enum Command {
     /// HDF5 layout. truth.json, written beside it, holds the camera (K, distortion, size),
     /// the grid, and for every window the detector will cut (same --events-per-window and
     /// --step-ms) the pose and each circle's true image centre at the window's t_ref: the
-    /// projected ellipse's centre and the projection of the circle's centre.
+    /// projected ellipse's centre and the projection of the circle's centre. A truth.json there
+    /// of another recording is left alone (an error): --truth FILE writes it elsewhere.
     Simulate(simulate::SimulateArgs),
     /// The main job on a built-in default: simulate a DAVIS346 with known intrinsics sweeping
     /// a 4x11 grid, run every window through the detection core on a virtual device (its

@@ -1,7 +1,7 @@
 //! `evcal replay`: stream a recording into a device and collect its detections.
 
 use crate::common::{
-    check_writable, exit_interrupted, output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs,
+    check_output, exit_interrupted, output, progress_bar, resolve_sensor, stop_on_ctrl_c, with_position, CoreArgs,
     LinkArgs, ReadArgs,
 };
 use crate::ranges;
@@ -23,7 +23,8 @@ pub struct ReplayArgs {
     pub core: CoreArgs,
     #[command(flatten)]
     pub read: ReadArgs,
-    /// Write the JSON lines here instead of standard output.
+    /// Write the JSON lines here instead of standard output (`-`). Written to a temporary
+    /// file renamed into place at the end; Ctrl-C and errors keep what arrived.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
     /// Seconds to wait for the device's Hello before sending the configuration anyway; 0 to
@@ -48,7 +49,7 @@ pub struct ReplayArgs {
 
 pub fn run(a: ReplayArgs) -> Result<()> {
     if let Some(o) = &a.out {
-        check_writable(o, "--out")?;
+        check_output(o, "--out", &[("the recording", &a.recording)])?;
     }
     let rec = a.read.open(&a.recording, a.quiet, a.core.sensor.is_none())?;
     let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
@@ -94,12 +95,12 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         }
     });
     pb.finish_and_clear();
-    // Whatever happened, keep what arrived.
-    let flushed = out.flush();
+    // Whatever happened, keep what arrived, but for a failed write: the file would end
+    // torn, so it is left as it was.
     if let Some(e) = write_err {
         return Err(e.context("writing detections"));
     }
-    flushed.context("writing detections")?;
+    out.finish().context("writing detections")?;
     let r = result?;
     if !a.quiet {
         summary(&r);

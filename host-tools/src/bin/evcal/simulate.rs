@@ -1,11 +1,12 @@
 //! `evcal simulate`: a simulated recording and its ground truth.
 
-use crate::common::{run_simulation, truth_json, window_line, window_truths, write_json, WindowWhy};
+use crate::common::{check_output, run_simulation, truth_json, window_line, window_truths, write_json, WindowWhy};
 use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_core::{event::SensorSize, window::WindowConfig};
 use evcal_host::{
+    export::atomic::{folder_of, same_file},
     input::detections,
     input::recording::{write_ecalib_h5, write_text},
     sim::{Camera, Light, PixelModel, RecordedMotion, SimConfig, Trajectory},
@@ -46,6 +47,11 @@ pub struct SimulateArgs {
     /// Where to write the recording (.txt or .h5).
     #[arg(long, short)]
     pub out: PathBuf,
+    /// Where to write the truth [default: truth.json beside the recording, which replaces a
+    /// truth.json there only when that is the truth of a recording of the same name, as a
+    /// run again writes].
+    #[arg(long, value_name = "FILE")]
+    pub truth: Option<PathBuf>,
     /// Events per window of the truth (match what you pass to `evcal detect`) [default: as
     /// `evcal detect`'s for the sensor: 8000 for davis346, 15000 dvxplorer, 25500 imx636,
     /// 8500 genx320]
@@ -151,6 +157,8 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         }
         took = motion.apply(&mut cfg);
     }
+    let truth_path = a.truth.clone().unwrap_or_else(|| folder_of(&a.out).join(TRUTH));
+    check_outputs(&a, &truth_path)?;
     // Before the simulation, not after it: a missing folder is no reason to lose its work.
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create the folder {}", dir.display()))?;
@@ -168,8 +176,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         step_us: (a.step_ms * 1000.0).round() as u64,
     };
     let truths = window_truths(&events, &sim, window);
-    let truth_path = a.out.parent().unwrap_or(Path::new(".")).join("truth.json");
-    write_json(&truth_path, &truth_json(&sim, &truths))?;
+    write_json(&truth_path, &truth_json(&sim, &truths, &recording_name(&a.out)))?;
     if !a.quiet {
         if let (Some(path), false) = (&a.poses, took.is_empty()) {
             eprintln!("evcal: motion, {} from {}", took.join(", "), path.display());
@@ -191,4 +198,71 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The truth's file beside the recording, unless --truth.
+const TRUTH: &str = "truth.json";
+
+/// The recording's file name, as the truth records it.
+fn recording_name(out: &Path) -> String {
+    out.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+/// Checks the outputs before any work: the recording and the truth neither links, folders
+/// nor the --poses file, not one file, and a truth.json beside the recording that is not its
+/// own (another recording's, or another program's) left alone.
+fn check_outputs(a: &SimulateArgs, truth: &Path) -> Result<()> {
+    if a.out.as_os_str() == "-" {
+        bail!("--out -: simulate writes a file (and truth.json beside it); give a name");
+    }
+    let inputs: Vec<(&str, &Path)> = a.poses.iter().map(|p| ("--poses", p.as_path())).collect();
+    let truth_what = if a.truth.is_some() { "--truth" } else { "the truth" };
+    // A folder still to be made holds nothing to clobber.
+    if folder_of(&a.out).is_dir() {
+        check_output(&a.out, "--out", &inputs)?;
+    }
+    if folder_of(truth).is_dir() || a.truth.is_some() {
+        check_output(truth, truth_what, &inputs)?;
+    }
+    if same_file(&a.out, truth) {
+        match &a.truth {
+            Some(t) => bail!("--truth {}: is the same file as --out {}; give another name", t.display(), a.out.display()),
+            None => bail!(
+                "--out {}: is where the truth goes ({TRUTH} beside the recording); name the recording otherwise, or give --truth FILE",
+                a.out.display()
+            ),
+        }
+    }
+    if a.truth.is_none() && std::fs::symlink_metadata(truth).is_ok() {
+        let name = recording_name(&a.out);
+        let owner = truth_owner(truth);
+        if owner.as_deref() != Some(name.as_str()) {
+            let whose = match owner {
+                Some(o) => format!("holds the truth of another recording, {o}"),
+                None => "is not the truth of a recording evcal simulated".to_string(),
+            };
+            bail!(
+                "{}: {whose}; it is left as it is: simulate into another folder, or give --truth FILE for this recording's",
+                truth.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The recording a truth file names (`recording`, written since issue 46); `None` for a file
+/// that is not a truth evcal wrote, or one written before it named its recording.
+fn truth_owner(truth: &Path) -> Option<String> {
+    #[derive(serde::Deserialize)]
+    struct Owner {
+        recording: Option<String>,
+        // Only evcal's truth has these; another program's file with a `recording` is not one.
+        #[allow(dead_code)]
+        camera: serde::de::IgnoredAny,
+        #[allow(dead_code)]
+        windows: serde::de::IgnoredAny,
+    }
+    let f = std::fs::File::open(truth).ok()?;
+    let o: Owner = serde_json::from_reader(std::io::BufReader::new(f)).ok()?;
+    o.recording
 }

@@ -127,8 +127,18 @@ fn row_to_event(x: f64, y: f64, p: f64, t: f64) -> Result<Event, String> {
 }
 
 /// Writes events in E-Calib's layout (`events_data`, N x 4 f64 `[x, y, p, t_seconds]`).
+/// The HDF5 library writes a temporary file beside `path`, renamed over it at the end
+/// ([`crate::export::atomic`]): a failure leaves `path` as it was.
 pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
-    let file = hdf5::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let staged = crate::export::atomic::AtomicFile::create(path).map_err(|e| e.to_string())?;
+    write_ecalib_h5_at(staged.path(), path, events)?;
+    staged.commit().map_err(|e| e.to_string())
+}
+
+/// Writes the file of [`write_ecalib_h5`] at `at`, naming `path` in errors; the file is
+/// closed on return.
+fn write_ecalib_h5_at(at: &Path, path: &Path, events: &[Event]) -> Result<(), String> {
+    let file = hdf5::File::create(at).map_err(|e| format!("{}: {e}", path.display()))?;
     let mut data = Vec::with_capacity(events.len() * 4);
     for e in events {
         data.extend([f64::from(e.x), f64::from(e.y), f64::from(u8::from(e.polarity)), e.t_us as f64 * 1e-6]);
@@ -138,7 +148,8 @@ pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
         .with_data(&arr)
         .create("events_data")
         .map_err(|e| format!("{}: cannot write events_data: {e}", path.display()))?;
-    Ok(())
+    // Closed here, with its error, not on a drop that would swallow it.
+    file.close().map_err(|e| format!("{}: {e}", path.display()))
 }
 
 #[cfg(test)]

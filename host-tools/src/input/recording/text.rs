@@ -350,9 +350,18 @@ fn to_us(s: &str, unit: TimeUnit) -> Option<u64> {
 }
 
 /// Writes events as a text recording (`t x y p`, t in seconds with 6 decimals), with a
-/// `width height` header line when `sensor` is given.
+/// `width height` header line when `sensor` is given; through a temporary file renamed over
+/// `path` ([`crate::export::atomic`]), so that a failure leaves `path` as it was.
 pub fn write_text(path: &Path, sensor: Option<SensorSize>, events: &[Event]) -> std::io::Result<()> {
-    let mut w = BufWriter::with_capacity(1 << 16, File::create(path)?);
+    let f = crate::export::atomic::AtomicFile::create(path).map_err(std::io::Error::other)?;
+    let mut w = BufWriter::with_capacity(1 << 16, f);
+    write_text_to(&mut w, sensor, events)?;
+    let f = w.into_inner().map_err(|e| e.into_error())?;
+    f.commit().map_err(std::io::Error::other)
+}
+
+/// Writes events as [`write_text`] does, to `w`.
+pub fn write_text_to(w: &mut impl Write, sensor: Option<SensorSize>, events: &[Event]) -> std::io::Result<()> {
     if let Some(s) = sensor {
         writeln!(w, "{} {}", s.width, s.height)?;
     }

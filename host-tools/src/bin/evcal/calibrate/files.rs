@@ -1,0 +1,91 @@
+//! What `evcal calibrate` (and `evcal demo`) write: the checks of the outputs before any
+//! work, the files, their list, and an earlier run's results when a run writes none.
+
+use crate::common::{check_output, outln};
+use anyhow::{bail, Result};
+use evcal_host::{
+    export::{atomic, remove_stale, write_all, Export, FILE_NAMES},
+    pipeline::{Outcome, Views},
+};
+use std::path::{Path, PathBuf};
+
+/// Checks that the outputs can be written, before any work: `out` a folder (or nothing yet),
+/// its files and `json` neither links nor folders nor one of `inputs`, and `json` not one of
+/// the folder's other files.
+pub fn check_outputs(out: &Path, json: Option<&Path>, inputs: &[(&str, &Path)]) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        bail!("--out {}: exists and is not a folder", out.display());
+    }
+    if out.is_dir() {
+        for name in FILE_NAMES {
+            check_output(&out.join(name), "--out", inputs)?;
+        }
+    }
+    if let Some(j) = json {
+        check_output(j, "--json", inputs)?;
+        for name in &FILE_NAMES[1..] {
+            if atomic::same_file(j, &out.join(name)) {
+                bail!("--json {}: is --out's {name}, which calibrate writes too; give another name", j.display());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// After a run that wrote no results: removes the earlier run's in `out` (and at `json`),
+/// which would otherwise be taken for this run's, and says so. Files evcal cannot tell it
+/// wrote are left, also said.
+pub fn say_stale_removed(out: &Path, json: Option<&Path>, quiet: bool) {
+    let s = remove_stale(out, json);
+    let list = |v: &[PathBuf]| v.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
+    if !s.removed.is_empty() {
+        // Said even with --quiet: files went away.
+        eprintln!("evcal: removed an earlier run's results, as this run gives none: {}", list(&s.removed));
+    }
+    if !s.left.is_empty() && !quiet {
+        eprintln!("evcal: note: left as they are (not known to be written by evcal): {}", list(&s.left));
+    }
+    for (p, e) in &s.failed {
+        eprintln!(
+            "evcal: warning: {}: an earlier run's result, and this run gives none, but it cannot be removed: {e}",
+            p.display()
+        );
+    }
+}
+
+/// Writes every output into `dir`, and the JSON result to `json` too. Done before anything
+/// is printed, so that a reader closing standard output early (`| head`) cannot leave the
+/// files unwritten or stale from an earlier run.
+pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<Written> {
+    let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
+    e.kalibr_calibration = o.without_k3.as_ref();
+    e.edge_shift = o.edge_shift;
+    e.failure = o.failure.as_deref();
+    e.json_copy = json;
+    let written = write_all(dir, &e)?;
+    Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
+}
+
+/// What [`export`] wrote, to list after the report.
+pub struct Written {
+    files: evcal_host::export::Written,
+    json: Option<PathBuf>,
+    without_k3: bool,
+}
+
+/// Lists what [`export`] wrote, with its notes.
+pub fn list_written(w: &Written) -> Result<()> {
+    if w.without_k3 {
+        outln!(
+            "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
+        )?;
+    }
+    for warning in &w.files.warnings {
+        outln!("warning: {warning}")?;
+    }
+    outln!("wrote:")?;
+    for p in w.files.paths.iter().chain(&w.json) {
+        outln!("  {}", p.display())?;
+    }
+    Ok(())
+}
