@@ -467,8 +467,18 @@ fn fletcher32(data: &[u8]) -> u32 {
 
 /// A zlib stream inflated to at most `limit` bytes (more is an error, as is a cut stream).
 fn inflate(data: &[u8], limit: usize) -> Result<Vec<u8>, String> {
+    // One inflater per thread, reset per chunk: a new one allocates and clears tens of
+    // kilobytes, which for chunks of a few hundred bytes (h5py's appends) cost more than
+    // inflating them.
+    thread_local! {
+        static INFLATER: std::cell::RefCell<flate2::Decompress> = std::cell::RefCell::new(flate2::Decompress::new(true));
+    }
     let mut out = Vec::with_capacity(limit + 1);
-    match flate2::Decompress::new(true).decompress_vec(data, &mut out, flate2::FlushDecompress::Finish) {
+    let status = INFLATER.with_borrow_mut(|d| {
+        d.reset(true);
+        d.decompress_vec(data, &mut out, flate2::FlushDecompress::Finish)
+    });
+    match status {
         Ok(flate2::Status::StreamEnd) if out.len() <= limit => Ok(out),
         Ok(_) if out.len() > limit => Err(format!("gzip data inflate to more than {limit} bytes")),
         Ok(_) => Err("gzip data cut short".into()),
