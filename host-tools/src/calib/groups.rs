@@ -105,14 +105,15 @@ pub fn group_seconds(times: &[f64]) -> f64 {
     // group at the first view at least a stretch after the last start, and a shorter stretch
     // moves no start later), so the first is found by bisection: a walk through every n is
     // linear in the span, endless for a stray time centuries away.
+    // The span is finite and at least 0 here: no stretch is NaN.
     let stretch = |n: u64| span / n as f64;
     let wanted = GROUPS_WANTED as u64;
-    if !(stretch(wanted) >= MIN_GROUP_SECONDS) {
+    if stretch(wanted) < MIN_GROUP_SECONDS {
         return MIN_GROUP_SECONDS;
     }
     // The last n whose stretch is at least the floor (n as f64 exact below 2^53).
     let mut last = (span / MIN_GROUP_SECONDS).clamp(wanted as f64, MAX_EXACT_COUNT as f64) as u64;
-    while last > wanted && !(stretch(last) >= MIN_GROUP_SECONDS) {
+    while last > wanted && stretch(last) < MIN_GROUP_SECONDS {
         last -= 1;
     }
     while last < MAX_EXACT_COUNT && stretch(last + 1) >= MIN_GROUP_SECONDS {
