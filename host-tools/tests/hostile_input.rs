@@ -900,3 +900,8 @@ fn simulate_follows_recorded_poses_and_refuses_bad_ones() {
 
 #[path = "hostile_input/outputs.rs"]
 mod outputs;
+
+// ---- far-off times and crowded windows end within seconds; square pixels (issue 46) ------
+
+#[path = "hostile_input/bounded.rs"]
+mod bounded;

@@ -72,7 +72,9 @@ pub struct Options {
     pub fix_k3: bool,
     /// Keep p1 = p2 = 0 (CALIB_ZERO_TANGENT_DIST).
     pub zero_tangential: bool,
-    /// Keep fy / fx at the starting value (CALIB_FIX_ASPECT_RATIO).
+    /// Keep fy / fx fixed (CALIB_FIX_ASPECT_RATIO): at 1 (square pixels; fy = fx exactly,
+    /// one focal length solved for), or at the ratio of [`start`](Self::start) when one is
+    /// given, as OpenCV keeps its guess's.
     pub fix_aspect_ratio: bool,
     /// Keep the principal point at the starting value (CALIB_FIX_PRINCIPAL_POINT).
     pub fix_principal_point: bool,
@@ -393,6 +395,8 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
                     [fx, fy, centre[0], centre[1]]
                 }
             };
+            // Square pixels: one focal length, between the two the closed form gives.
+            let [fx, fy] = if opts.fix_aspect_ratio { [(fx * fy).sqrt(); 2] } else { [fx, fy] };
             Intrinsics { fx, fy, cx, cy, k1: 0.0, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 }
         }
     };
@@ -425,7 +429,10 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     if opts.fix_k3 {
         mask[8] = false;
     }
-    let free = solve::Free { mask, aspect: opts.fix_aspect_ratio.then_some(start.fy / start.fx) };
+    // Without a start of the user's the ratio is 1 and fy is fx itself (`1.0 * fx`), not a
+    // ratio the closed form's noise set.
+    let aspect = if opts.start.is_some() { start.fy / start.fx } else { 1.0 };
+    let free = solve::Free { mask, aspect: opts.fix_aspect_ratio.then_some(aspect) };
     let mut k = start;
     if opts.zero_tangential {
         k.p1 = 0.0;
@@ -1267,6 +1274,26 @@ mod test {
         assert!(cal.rms_all_px > 0.16, "{}", cal.rms_all_px);
         assert!((cal.intrinsics.fx / t.fx - 1.0).abs() < 1e-3);
         assert!((cal.intrinsics.cx - t.cx).abs() < 0.5);
+    }
+
+    #[test]
+    fn a_fixed_aspect_ratio_without_a_start_is_one() {
+        // Square pixels seen with noise: the closed form's start has fy/fx off 1 by a little,
+        // which the solve used to keep.
+        let t = Intrinsics { fy: 352.4, ..truth() };
+        let views = synthetic_views(&t, 20, 0.2, 11);
+        let opts = Options { fix_aspect_ratio: true, fix_k3: true, ..Options::default() };
+        let cal = calibrate(&views, [346, 260], &opts).unwrap();
+        let k = cal.intrinsics;
+        assert_eq!(k.fy.to_bits(), k.fx.to_bits(), "{k:?}");
+        assert_eq!(cal.std_dev[1].to_bits(), cal.std_dev[0].to_bits());
+        assert_eq!(cal.std_dev_points[1].to_bits(), cal.std_dev_points[0].to_bits());
+        assert!(cal.std_dev[0] > 0.0 && cal.std_dev[0] < 1.0, "{:?}", cal.std_dev);
+        assert!((k.fx / t.fx - 1.0).abs() < 1e-3, "{k:?}");
+        // A start of the user's keeps its own ratio, as OpenCV's guess does.
+        let start = Intrinsics { fy: 0.99 * t.fx, ..t };
+        let k = calibrate(&views, [346, 260], &Options { start: Some(start), ..opts }).unwrap().intrinsics;
+        assert!((k.fy / k.fx - 0.99).abs() < 1e-12, "{k:?}");
     }
 
     #[test]

@@ -90,7 +90,8 @@ pub struct SolveArgs {
     /// Keep p1 = p2 = 0.
     #[arg(long)]
     pub zero_tangential: bool,
-    /// Keep fy/fx at 1 (square pixels).
+    /// Keep fy/fx at 1 (square pixels): one focal length is solved for, and fy = fx exactly,
+    /// their σ alike.
     #[arg(long)]
     pub fix_aspect_ratio: bool,
     /// Plain least squares, as OpenCV: no stray points set aside or down-weighted, no views

@@ -20,9 +20,10 @@
 
 use super::blosc;
 use super::h5cols::MAX_CHUNK_BYTES;
+use super::h5index::ChunkIndex;
 use hdf5::H5Type;
-use hdf5_sys::h5::{haddr_t, hsize_t, HADDR_UNDEF};
-use hdf5_sys::h5d::{H5D_layout_t, H5Dget_chunk_info_by_coord, H5Dget_storage_size, H5Dread_chunk};
+use hdf5_sys::h5::hsize_t;
+use hdf5_sys::h5d::{H5D_layout_t, H5Dget_storage_size, H5Dread_chunk};
 use hdf5_sys::h5p::{H5Pget_filter2, H5Pget_layout, H5Pget_nfilters, H5P_DEFAULT};
 use hdf5_sys::h5t::{
     H5T_class_t, H5T_order_t, H5T_sign_t, H5Tclose, H5Tget_class, H5Tget_order, H5Tget_sign, H5Tget_size, H5Tget_super,
@@ -115,6 +116,8 @@ struct Chunked {
     chunk_bytes: usize,
     scalar: Scalar,
     cache: Vec<((usize, usize), Vec<u8>)>,
+    /// Where the chunks are stored, listed at the first read.
+    index: Option<ChunkIndex>,
 }
 
 /// A dataset of one or two dimensions (events by fields), read by rows.
@@ -152,7 +155,15 @@ impl Column {
                         if rows == 0 || cols == 0 || bytes > MAX_CHUNK_BYTES as u128 {
                             return Err(format!("chunks of {rows} x {cols} values: corrupt"));
                         }
-                        Some(Chunked { rows, cols, pipeline, chunk_bytes: bytes as usize, scalar, cache: Vec::new() })
+                        Some(Chunked {
+                            rows,
+                            cols,
+                            pipeline,
+                            chunk_bytes: bytes as usize,
+                            scalar,
+                            cache: Vec::new(),
+                            index: None,
+                        })
                     }
                 }
             }
@@ -211,6 +222,14 @@ impl Chunked {
         if let Some(i) = self.cache.iter().position(|(k, _)| *k == key) {
             return Ok(&self.cache[i].1);
         }
+        if self.index.is_none() {
+            // The chunks the shape holds: more listed is a corrupt index.
+            let shape = ds.shape();
+            let blocks = |extent: usize, per: usize| extent.div_ceil(per.max(1));
+            let most = blocks(shape.first().copied().unwrap_or(0), self.rows)
+                .saturating_mul(blocks(shape.get(1).copied().unwrap_or(1), self.cols));
+            self.index = Some(ChunkIndex::list(ds, most)?);
+        }
         let bytes = self.load(ds, key)?;
         if self.cache.len() == CACHED_CHUNKS {
             self.cache.remove(0);
@@ -226,14 +245,13 @@ impl Chunked {
         } else {
             vec![first_row as hsize_t, (col_block * self.cols) as hsize_t]
         };
-        let (mut mask, mut addr, mut size): (c_uint, haddr_t, hsize_t) = (0, HADDR_UNDEF, 0);
-        // SAFETY: `offset` has one entry per dimension; the outputs are plain values.
-        let status = hdf5::sync::sync(|| unsafe {
-            H5Dget_chunk_info_by_coord(ds.id(), offset.as_ptr(), &mut mask, &mut addr, &mut size)
-        });
-        if status < 0 || addr == HADDR_UNDEF || size == 0 {
-            return Err(format!("the chunk from row {first_row} is not stored: the file is incomplete or corrupt"));
-        }
+        let stored = self.index.as_ref().and_then(|i| i.size(offset[0], offset.get(1).copied().unwrap_or(0)));
+        let size = match stored {
+            Some(size) if size > 0 => size,
+            _ => {
+                return Err(format!("the chunk from row {first_row} is not stored: the file is incomplete or corrupt"))
+            }
+        };
         let limit = self.chunk_bytes as u64 + self.chunk_bytes as u64 / 16 + 4096;
         if size > limit {
             return Err(format!(
@@ -449,8 +467,18 @@ fn fletcher32(data: &[u8]) -> u32 {
 
 /// A zlib stream inflated to at most `limit` bytes (more is an error, as is a cut stream).
 fn inflate(data: &[u8], limit: usize) -> Result<Vec<u8>, String> {
+    // One inflater per thread, reset per chunk: a new one allocates and clears tens of
+    // kilobytes, which for chunks of a few hundred bytes (h5py's appends) cost more than
+    // inflating them.
+    thread_local! {
+        static INFLATER: std::cell::RefCell<flate2::Decompress> = std::cell::RefCell::new(flate2::Decompress::new(true));
+    }
     let mut out = Vec::with_capacity(limit + 1);
-    match flate2::Decompress::new(true).decompress_vec(data, &mut out, flate2::FlushDecompress::Finish) {
+    let status = INFLATER.with_borrow_mut(|d| {
+        d.reset(true);
+        d.decompress_vec(data, &mut out, flate2::FlushDecompress::Finish)
+    });
+    match status {
         Ok(flate2::Status::StreamEnd) if out.len() <= limit => Ok(out),
         Ok(_) if out.len() > limit => Err(format!("gzip data inflate to more than {limit} bytes")),
         Ok(_) => Err("gzip data cut short".into()),

@@ -15,6 +15,7 @@ mod h5;
 mod h5chunks;
 mod h5cols;
 mod h5file;
+mod h5index;
 pub mod prophesee;
 mod text;
 

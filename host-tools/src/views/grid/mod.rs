@@ -55,6 +55,7 @@ pub use placement::MAX_STRAYS;
 use crate::input::detections::CenterRecord;
 use checks::check_smooth;
 use consistency::consistent;
+use evcal_core::config::MAX_CLUSTERS;
 use lattice::{grow, seeds, Cell};
 use placement::place;
 use std::collections::HashMap;
@@ -92,6 +93,10 @@ pub struct GridDetection {
 pub enum Miss {
     /// Fewer usable centres than the grid needs.
     TooFewCentres,
+    /// More usable centres than the finder searches ([`max_centres`]): not a window of a
+    /// detector's circles (evcal's gives at most [`MAX_CLUSTERS`]), and a search among them
+    /// would take the square of their number.
+    TooManyCentres,
     /// No centre has the four neighbours of a lattice point.
     NoLattice,
     /// A lattice was found but holds too few of the grid's points.
@@ -108,8 +113,9 @@ pub enum Miss {
 
 impl Miss {
     /// Every reason, for reports.
-    pub const ALL: [Miss; 6] = [
+    pub const ALL: [Miss; 7] = [
         Miss::TooFewCentres,
+        Miss::TooManyCentres,
         Miss::NoLattice,
         Miss::TooFewPoints,
         Miss::NoPlacement,
@@ -122,6 +128,12 @@ impl fmt::Display for Miss {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             Miss::TooFewCentres => "too few centres",
+            Miss::TooManyCentres => {
+                return write!(
+                    f,
+                    "too many centres (more than {CENTRES_PER_GRID_POINT} per circle of the pattern and than the {MAX_CLUSTERS} a window of evcal's detector holds: not searched)"
+                )
+            }
             Miss::NoLattice => "no lattice",
             Miss::TooFewPoints => "too few grid points",
             Miss::NoPlacement => "lattice does not fit the pattern",
@@ -155,6 +167,18 @@ struct Pt {
     events: u16,
 }
 
+/// Centres a window may hold per circle of the pattern for the finder to search it: room
+/// for clutter several times the grid's own. The search compares every centre with every
+/// other (9000 centres took 8 s a window), so a window beyond this and beyond
+/// [`MAX_CLUSTERS`] is a miss ([`Miss::TooManyCentres`]).
+pub const CENTRES_PER_GRID_POINT: usize = 4;
+
+/// Most usable centres the finder searches a window of `pattern` for: [`CENTRES_PER_GRID_POINT`]
+/// per circle, and never fewer than a window of evcal's detector holds ([`MAX_CLUSTERS`]).
+pub fn max_centres(pattern: &Pattern) -> usize {
+    (CENTRES_PER_GRID_POINT * pattern.len()).max(MAX_CLUSTERS)
+}
+
 /// Most seeds tried before giving up.
 const MAX_SEEDS: usize = 8;
 
@@ -179,6 +203,9 @@ pub fn find_grid(centres: &[CenterRecord], pattern: &Pattern, opts: &FindOptions
         .collect();
     if pts.len() < needed {
         return Err(Miss::TooFewCentres);
+    }
+    if pts.len() > max_centres(pattern) {
+        return Err(Miss::TooManyCentres);
     }
     let candidates = consistent(&pts);
     if candidates.len() < needed {

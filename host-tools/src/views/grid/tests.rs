@@ -283,6 +283,40 @@ fn bad_numbers_and_empty_input_are_misses() {
     assert!(find(&same, &pattern).is_err());
 }
 
+#[test]
+fn a_window_of_thousands_of_centres_is_a_miss_at_once() {
+    let pattern = Pattern::new(4, 11, 0.024).unwrap();
+    let grid = shoot(&pattern, &Shot::flat(10.0), 0.1, 5);
+    let r = f64::from(grid[0].0.r);
+    // Clutter of the grid's size scattered over the sensor, up to the cap: still found.
+    let mut rng = ChaCha8Rng::seed_from_u64(46);
+    let mut clutter = || (centre([rng.random_range(0.0..SIZE[0]), rng.random_range(0.0..SIZE[1])], r), None);
+    let mut c = grid.clone();
+    while c.len() < max_centres(&pattern) {
+        let k = clutter();
+        // Clear of the grid's circles, as clutter beside a board is.
+        if grid
+            .iter()
+            .all(|(g, _)| dist([f64::from(g.u), f64::from(g.v)], [f64::from(k.0.u), f64::from(k.0.v)]) > 3.0 * r)
+        {
+            c.push(k);
+        }
+    }
+    assert_eq!(max_centres(&pattern), CENTRES_PER_GRID_POINT * pattern.len());
+    let at_cap = find(&c, &pattern);
+    assert_ne!(at_cap.as_ref().err(), Some(&Miss::TooManyCentres));
+    if let Ok(g) = at_cap {
+        check(&g, &c);
+    }
+    // 9000 (a hostile detections file): a miss of its own, without a search.
+    let mut many = grid;
+    many.extend((0..9000).map(|_| clutter()));
+    let started = std::time::Instant::now();
+    assert_eq!(find(&many, &pattern).unwrap_err(), Miss::TooManyCentres);
+    assert!(started.elapsed().as_secs_f64() < 0.5, "{:?}", started.elapsed());
+    assert!(Miss::TooManyCentres.to_string().contains("too many centres"));
+}
+
 /// Whatever the pose, clutter and losses: a grid found is labelled right. Random cases
 /// (proptest's runner, so a failure shrinks and is kept in proptest-regressions/), and a
 /// floor on the grids found: a finder that never succeeded would pass the labelling check
