@@ -19,6 +19,9 @@ use std::{
     process::{Command, Stdio},
 };
 
+#[path = "hostile_input/stray_time.rs"]
+mod stray_time;
+
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/formats").join(name)
 }

@@ -79,6 +79,15 @@ impl TimeUnwrapper {
         self.last = Some(t);
         self.high | u64::from(t)
     }
+
+    /// The 64-bit time of `t` taken as it is, in the current epoch, even where
+    /// [`extend`](Self::extend) would see a wrap: for a source that knows the time before
+    /// was a stray (it had itself jumped ahead by more than half the range), so that the
+    /// step back is no wrap but the stream going on; the input filter then drops the stray.
+    pub fn take_as_is(&mut self, t: u32) -> u64 {
+        self.last = Some(t);
+        self.high | u64::from(t)
+    }
 }
 
 #[cfg(test)]
@@ -96,6 +105,16 @@ mod test {
         assert_eq!(u.extend(7), (2u64 << 32) + 7);
         // a late event from just before the last wrap stays in the previous epoch
         assert_eq!(u.extend(u32::MAX - 1), (1u64 << 32) + u64::from(u32::MAX - 1));
+    }
+
+    #[test]
+    fn unwrapper_takes_a_time_as_it_is_when_told() {
+        let mut u = TimeUnwrapper::new();
+        assert_eq!(u.extend(1000), 1000);
+        // A stray far ahead, then the stream going on: no wrap.
+        assert_eq!(u.extend(3_600_000_000), 3_600_000_000);
+        assert_eq!(u.take_as_is(1010), 1010);
+        assert_eq!(u.extend(1020), 1020);
     }
 
     #[test]
