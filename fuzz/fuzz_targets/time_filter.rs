@@ -47,10 +47,9 @@ fuzz_target!(|data: &[u8]| {
 fn push<const H: usize>(f: &mut InputFilter<H>, t: u64, e: &[u8], pops: bool, out: &mut Vec<u64>) {
     let ev = Event { t_us: t, x: u16::from(e[2] % 72), y: u16::from(e[3] % 72), polarity: true };
     out.extend(f.push(ev).map(|e| e.t_us));
-    while pops {
-        match f.pop() {
-            Some(e) => out.push(e.t_us),
-            None => break,
+    if pops {
+        while let Some(e) = f.pop() {
+            out.push(e.t_us);
         }
     }
 }

@@ -246,10 +246,9 @@ proptest! {
         let mut out = Vec::new();
         for &t in &ts {
             out.extend(f.push(ev(t)).map(|e| e.t_us));
-            while pops {
-                match f.pop() {
-                    Some(e) => out.push(e.t_us),
-                    None => break,
+            if pops {
+                while let Some(e) = f.pop() {
+                    out.push(e.t_us);
                 }
             }
         }
