@@ -3,7 +3,8 @@
 #
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET...]    (default: 60 s, every target)
 #
-# Targets: the EVT decoders (evt2, evt21, evt3), the wire (wire_*), the detector, and one per
+# Targets: the EVT decoders (evt2, evt21, evt3), the wire (wire_*), the detector, the input
+# filter's time order (time_filter), and one per
 # host reader (read_text, read_raw, read_dat, read_aedat4, read_bag, read_h5), which are
 # seeded with the format fixtures.
 #

@@ -11,7 +11,7 @@ use crate::{
         ColumnTables, TABLE_CELLS,
     },
     config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
-    event::{Event, InputFilter, InputStats, SensorSize},
+    event::{Event, InputFilter, InputStats, SensorSize, MAX_HELD_EVENTS},
     fit::{fit_in, fit_with, Centre, Extent, FitConfig},
     math::sqrt_approx,
     moments::{Circle, Moments},
@@ -149,11 +149,15 @@ impl Default for Scratch {
 }
 
 /// The detection pipeline for windows of at most `N` events and at most `C` clusters per
-/// window.
+/// window, its input filter holding up to `H` events (see [`InputFilter`]).
 #[derive(Debug, Clone)]
-pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX_CLUSTERS> {
+pub struct Detector<
+    const N: usize = MAX_EVENTS_PER_WINDOW,
+    const C: usize = MAX_CLUSTERS,
+    const H: usize = MAX_HELD_EVENTS,
+> {
     cfg: DetectConfig,
-    filter: InputFilter,
+    filter: InputFilter<H>,
     windower: Windower<N>,
     clusterer: Clusterer<N, C>,
     scratch: Scratch,
@@ -161,7 +165,7 @@ pub struct Detector<const N: usize = MAX_EVENTS_PER_WINDOW, const C: usize = MAX
     ready: bool,
 }
 
-impl<const N: usize, const C: usize> Detector<N, C> {
+impl<const N: usize, const C: usize, const H: usize> Detector<N, C, H> {
     /// A detector with the given configuration (events per window clamped to `1..=N`).
     pub const fn new(cfg: DetectConfig) -> Self {
         Self {
@@ -194,7 +198,7 @@ impl<const N: usize, const C: usize> Detector<N, C> {
     /// device a temporary detector would not fit the stack.
     pub fn reconfigure(&mut self, cfg: DetectConfig) {
         self.cfg = cfg;
-        self.filter = InputFilter::new(cfg.sensor);
+        self.filter.reset(cfg.sensor);
         self.windower.reconfigure(cfg.window);
         // The clusterer keeps nothing from one window to the next.
         self.out.info = WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 0, t_last_us: 0, ticks_skipped: 0 };
@@ -210,7 +214,8 @@ impl<const N: usize, const C: usize> Detector<N, C> {
         cfg
     }
 
-    /// Feeds one event; returns the window's detection when this event completes a window.
+    /// Feeds one event; returns the window's detection when a window completes. At the end
+    /// of the input call [`end`](Self::end) until `None`.
     pub fn push(&mut self, e: Event) -> Option<&Detection<C>> {
         if self.feed(e) {
             Some(self.process(&mut ()))
@@ -219,12 +224,51 @@ impl<const N: usize, const C: usize> Detector<N, C> {
         }
     }
 
-    /// Feeds one event without processing: `true` when this event completes a window, which
-    /// must then be processed with [`process`](Self::process) before the next `feed`.
-    pub fn feed(&mut self, e: Event) -> bool {
-        if self.filter.check(&e).is_err() {
-            return false;
+    /// The end of the input: the events the input filter still holds go on to the windower;
+    /// returns a detection when they complete a window. Call until `None`.
+    pub fn end(&mut self) -> Option<&Detection<C>> {
+        if self.finish() {
+            Some(self.process(&mut ()))
+        } else {
+            None
         }
+    }
+
+    /// Feeds one event without processing: `true` when a window completes, which must then be
+    /// processed with [`process`](Self::process) before the next `feed`. The window may be
+    /// completed by events the input filter held and released now (after a pause, see
+    /// [`InputFilter`]); the rest of them wait for the next `feed` or [`finish`](Self::finish).
+    pub fn feed(&mut self, e: Event) -> bool {
+        self.ready = false;
+        if let Some(e) = self.filter.push(e) {
+            if self.window(e) {
+                return true;
+            }
+        }
+        self.release()
+    }
+
+    /// The end of the input, without processing: the input filter decides what it holds
+    /// and releases it. `true` when that completes a window, to be processed with
+    /// [`process`](Self::process); call again until `false`.
+    pub fn finish(&mut self) -> bool {
+        self.ready = false;
+        self.filter.finish();
+        self.release()
+    }
+
+    /// Feeds the windower what the input filter releases, up to the end of a window.
+    fn release(&mut self) -> bool {
+        while let Some(e) = self.filter.pop() {
+            if self.window(e) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Feeds one accepted event to the windower: `true` when it completes a window.
+    fn window(&mut self, e: Event) -> bool {
         match self.windower.push(e) {
             Some(info) => {
                 self.out.info = info;
@@ -257,9 +301,9 @@ impl<const N: usize, const C: usize> Detector<N, C> {
         self.filter.stats()
     }
 
-    /// Events held by a window that has not completed yet.
+    /// Events held by a window that has not completed yet, or by the input filter.
     pub fn pending(&self) -> usize {
-        self.windower.pending()
+        self.windower.pending() + self.filter.held()
     }
 }
 

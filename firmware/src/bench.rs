@@ -122,7 +122,8 @@ pub fn run<B: Board>(board: &mut B, args: &str) -> bool {
         runner.events(),
         runner.windows(),
         input.out_of_sensor,
-        input.time_backwards,
+        // Stray times too: one count of events dropped for their time, as on the wire.
+        input.time_order(),
         runner.detector().pending(),
         end,
         width,

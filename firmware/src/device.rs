@@ -194,7 +194,13 @@ fn drain<S: serial::Write<u8>>(
     loop {
         let n = match src.read_events(&mut buf) {
             Ok(n) => n,
-            Err(e) => return e,
+            Err(e) => {
+                // What the input filter still holds (events after a pause) is windowed too.
+                while let Some(frame) = dev.end_events(clock) {
+                    send(serial, frame);
+                }
+                return e;
+            }
         };
         for e in &buf[..n] {
             if let Some(frame) = dev.push_event(*e, clock) {

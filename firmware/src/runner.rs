@@ -55,7 +55,14 @@ impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
                         }
                     }
                 }
-                Err(e) => return e,
+                Err(e) => {
+                    // What the input filter still holds (events after a pause) is windowed too.
+                    while self.det.finish() {
+                        self.windows += 1;
+                        on_window(self.det.process(&mut self.clock));
+                    }
+                    return e;
+                }
             }
         }
     }

@@ -5,7 +5,7 @@
 
 use evcal_core::{
     cluster::ClusterConfig,
-    detect::{DetectConfig, Detector},
+    detect::{DetectConfig, Detection, Detector},
     event::{Event, SensorSize},
     fit::{FitConfig, FitMethod},
     window::WindowConfig,
@@ -44,11 +44,18 @@ fuzz_target!(|data: &[u8]| {
             polarity: e[5] & 1 == 1,
         };
         if let Some(d) = det.push(ev) {
-            assert!(usize::from(d.stats.events) <= capacity);
-            assert!(d.info.t_first_us <= d.info.t_ref_us && d.info.t_ref_us <= d.info.t_last_us);
-            for c in &d.centres {
-                assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
-            }
+            check(d, capacity);
         }
     }
+    while let Some(d) = det.end() {
+        check(d, capacity);
+    }
 });
+
+fn check(d: &Detection<32>, capacity: usize) {
+    assert!(usize::from(d.stats.events) <= capacity);
+    assert!(d.info.t_first_us <= d.info.t_ref_us && d.info.t_ref_us <= d.info.t_last_us);
+    for c in &d.centres {
+        assert!(c.u.is_finite() && c.v.is_finite() && c.r > 0.0 && c.spread.is_finite());
+    }
+}

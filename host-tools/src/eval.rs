@@ -156,8 +156,16 @@ pub fn detect_with_truth(
 ) {
     let mut det: Box<crate::input::detections::HostDetector> =
         Box::new(crate::input::detections::HostDetector::new(det_cfg));
-    for e in events {
-        if let Some(d) = det.push(*e) {
+    let mut events = events.iter();
+    loop {
+        let d = match events.next() {
+            Some(e) => det.push(*e),
+            None => match det.end() {
+                Some(d) => Some(d),
+                None => break,
+            },
+        };
+        if let Some(d) = d {
             let r = WindowRecord::from_detection(d);
             each(&r, &sim.truth_at(r.t_ref_us));
         }

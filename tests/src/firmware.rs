@@ -327,5 +327,10 @@ fn by_function(elf: &Path, counts: impl Iterator<Item = (u64, u64)>) -> Result<V
 /// The host-side run of the core over `events` (what `evcal detect` computes).
 pub fn host_windows(events: &[Event], cfg: DetectConfig) -> Vec<BenchWindow> {
     let mut det: Box<HostDetector> = Box::new(Detector::new(cfg));
-    events.iter().filter_map(|e| det.push(*e).map(BenchWindow::of_detection)).collect()
+    let mut out: Vec<BenchWindow> = events.iter().filter_map(|e| det.push(*e).map(BenchWindow::of_detection)).collect();
+    // The events the input filter still holds at the end, as the firmware's runner does.
+    while let Some(d) = det.end() {
+        out.push(BenchWindow::of_detection(d));
+    }
+    out
 }

@@ -359,5 +359,9 @@ pub fn expected_frames(events: &[Event], cfg: DetectConfig) -> Result<Vec<(u32, 
             out.push((d.info.seq, encode(|o| emit_core_detection(d, o))?));
         }
     }
+    // The events the input filter still holds at the end, as the device's End does.
+    while let Some(d) = det.end() {
+        out.push((d.info.seq, encode(|o| emit_core_detection(d, o))?));
+    }
     Ok(out)
 }

@@ -58,7 +58,9 @@
 //! The sensors' clocks wrap (EVT 2.x: 2^34 µs, 4 h 46 min; EVT 3.0: 2^24 µs, 16.8 s). A
 //! `TIME_HIGH` smaller than the previous one by more than half its range is a wrap and moves
 //! the time on by the full range, so event times are 64-bit and monotonic across wraps; a
-//! smaller step back is taken as it is and counted ([`DecodeStats::time_high_steps_back`]).
+//! smaller step back is taken as it is and counted ([`DecodeStats::time_high_steps_back`]),
+//! and so is one right after a `TIME_HIGH` that jumped ahead by more than half the range (a
+//! stray value, which a wrap would turn into a lasting jump of the whole clock range).
 //! In EVT 3.0, an `EVT_TIME_LOW` smaller than the one before within the same `TIME_HIGH`
 //! period means the low counter wrapped, and the high part moves on by one, as the
 //! specification says ([`DecodeStats::time_low_wraps`]): sensors send the new `TIME_HIGH`
@@ -146,8 +148,10 @@ pub struct DecodeStats {
     pub first_unknown_at: Option<u64>,
     /// Wraps of the sensor clock seen (`TIME_HIGH` going back by more than half its range).
     pub time_wraps: u64,
-    /// `TIME_HIGH` words smaller than the previous one by less than half the range: not a
-    /// wrap, so time steps back (a corrupt or spliced stream).
+    /// `TIME_HIGH` words smaller than the previous one by less than half the range, or by
+    /// more right after one that jumped ahead as far (that one was the stray): not a wrap,
+    /// so time steps back (a corrupt or spliced stream; the detector's input filter drops
+    /// the events of the stray period).
     pub time_high_steps_back: u64,
     /// EVT 3.0 `EVT_TIME_LOW` words smaller than the one before in the same `TIME_HIGH`
     /// period: the low counter wrapped without a new `TIME_HIGH`, so the high part was moved
@@ -182,25 +186,30 @@ struct TimeHigh {
     epoch: u64,
     last: u32,
     seen: bool,
+    /// The last value jumped ahead of the one before by more than half the range: a step
+    /// back as far after it is the stream going on from a stray value, not a wrap.
+    jumped: bool,
 }
 
 impl TimeHigh {
     const fn new() -> Self {
-        Self { epoch: 0, last: 0, seen: false }
+        Self { epoch: 0, last: 0, seen: false, jumped: false }
     }
 
     /// Takes a new `TIME_HIGH` value of `bits` bits, for a clock of `clock_bits` bits; returns
     /// the epoch to add.
     #[inline(always)]
     fn update(&mut self, high: u32, bits: u32, clock_bits: u32, stats: &mut DecodeStats) -> u64 {
+        let half = 1 << (bits - 1);
         if self.seen && high < self.last {
-            if self.last - high > (1 << (bits - 1)) {
+            if self.last - high > half && !self.jumped {
                 self.epoch = self.epoch.wrapping_add(1 << clock_bits);
                 stats.time_wraps += 1;
             } else {
                 stats.time_high_steps_back += 1;
             }
         }
+        self.jumped = self.seen && high > self.last && high - self.last > half;
         self.last = high;
         self.seen = true;
         self.epoch

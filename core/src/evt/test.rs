@@ -100,6 +100,20 @@ fn evt2_time_wraps_at_34_bits() {
     assert_eq!((dec.stats().time_wraps, dec.stats().time_high_steps_back), (0, 1));
 }
 
+/// A stray `TIME_HIGH` more than half the range ahead and then the stream going on: a step
+/// back, not a wrap that would move every later event on by the whole clock range (the
+/// input filter drops the stray period's events).
+#[test]
+fn a_stray_time_high_far_ahead_is_no_wrap() {
+    let cd = |t6: u32| (t6 << 22) | (1 << 11) | 2;
+    let stray = 0x10 + (1 << 27) + 5;
+    let bytes = words32(&[0x8000_0010, cd(0), 0x8000_0000 | stray, cd(1), 0x8000_0010, cd(2), 0x8000_0011, cd(3)]);
+    let (got, dec) = decode_all(Encoding::Evt2, &bytes);
+    let t: Vec<u64> = got.iter().map(|e| e.t_us).collect();
+    assert_eq!(t, [16 << 6, (u64::from(stray) << 6) + 1, (16 << 6) + 2, (17 << 6) + 3]);
+    assert_eq!((dec.stats().time_wraps, dec.stats().time_high_steps_back), (0, 1));
+}
+
 #[test]
 fn evt21_both_half_orders_from_the_spec_example() {
     // The specification's example: the 64-bit word 0x0102030405060708 is sent as bytes
@@ -242,12 +256,17 @@ fn reference(encoding: Encoding, bytes: &[u8]) -> Vec<Event> {
     let mut out = Vec::new();
     let mut epoch = 0u64;
     let mut last_high: Option<u32> = None;
+    // Whether the last high jumped ahead by more than half the range (a stray: the step
+    // back after it is no wrap).
+    let mut jumped = false;
     let mut wrap = |high: u32, bits: u32, clock: u32, epoch: &mut u64| {
+        let half = 1 << (bits - 1);
         if let Some(l) = last_high {
-            if high < l && l - high > 1 << (bits - 1) {
+            if high < l && l - high > half && !jumped {
                 *epoch += 1 << clock;
             }
         }
+        jumped = last_high.is_some_and(|l| high > l && high - l > half);
         last_high = Some(high);
     };
     match encoding {

@@ -41,8 +41,9 @@
 //!
 //! # Memory
 //!
-//! `Device` is large: 49,920 bytes with the default capacities (the detector's window buffer
-//! and clusterer, about 47.6 KB, plus `RX + TX`). Give it a `static` home, and build it at
+//! `Device` is large: 62,776 bytes on the Cortex-M4F with the default capacities (the
+//! detector's window buffer, clusterer and scratch, its input filter's hold of
+//! [`MAX_HELD_EVENTS`](crate::event::MAX_HELD_EVENTS) events, 600 bytes, plus `RX + TX`). Give it a `static` home, and build it at
 //! compile time ([`Device::new`] and [`default_config`] are `const fn`), so that no temporary
 //! copy ever lands on the stack: with `static_cell`, as the firmware does, the image is
 //! written into the static's memory in place:
@@ -223,7 +224,9 @@ impl<const N: usize, const C: usize, const RX: usize, const TX: usize> Device<N,
         Stats {
             events_accepted: input.accepted,
             out_of_sensor: input.out_of_sensor,
-            time_backwards: input.time_backwards,
+            // The wire's one count of events dropped for their time: stray times too, so that
+            // the counts still add up to the events received (see `Stats::time_backwards`).
+            time_backwards: input.time_order(),
             pending_events: self.det.pending().min(u32::MAX as usize) as u32,
             ..self.stats
         }
@@ -268,11 +271,23 @@ impl<const N: usize, const C: usize, const RX: usize, const TX: usize> Device<N,
     }
 
     /// Feeds one event from the device's own source; returns the detection frame to
-    /// transmit when it completes a window. Call [`poll`](Self::poll) too, for stats and
-    /// replies.
+    /// transmit when a window completes. Call [`poll`](Self::poll) too, for stats and
+    /// replies, and [`end_events`](Self::end_events) when the source ends.
     pub fn push_event(&mut self, e: Event, clock: &mut impl Clock) -> Option<&[u8]> {
         self.stats.events_received += 1;
         if self.det.feed(e) {
+            if let Some(n) = self.process_window(clock) {
+                return self.tx.get(..n);
+            }
+        }
+        None
+    }
+
+    /// The device's own source has ended: the events the input filter still holds (after
+    /// a pause, see [`InputFilter`](crate::event::InputFilter)) are decided and windowed;
+    /// returns a detection frame when they complete a window. Call until `None`.
+    pub fn end_events(&mut self, clock: &mut impl Clock) -> Option<&[u8]> {
+        while self.det.finish() {
             if let Some(n) = self.process_window(clock) {
                 return self.tx.get(..n);
             }
@@ -414,7 +429,15 @@ impl<const N: usize, const C: usize, const RX: usize, const TX: usize> Device<N,
             }
             self.stats.input_ticks += u64::from(clock.now().wrapping_sub(t0));
         }
-        if core::mem::take(&mut self.end_due) {
+        if self.end_due {
+            // What the input filter holds goes first: the final Stats come after every window.
+            if self.det.finish() {
+                return match self.process_window(clock) {
+                    Some(n) => Step::Frame(n),
+                    None => Step::Again,
+                };
+            }
+            self.end_due = false;
             self.ack_due = self.ack_due.max(AckDue::Ack);
             return self.send_stats(true, clock);
         }
@@ -699,6 +722,47 @@ mod test {
                 DeviceMessage::Ack(a) => assert_eq!(a, Ack { next: end + 1, window: 2, nak: false }),
                 other => panic!("{other:?}"),
             }
+        }
+    }
+
+    /// A stray time is dropped (and counted) on the device too, and a window that only the
+    /// end of the stream completes (its last event after a pause, held by the input filter)
+    /// is sent before the final stats.
+    #[test]
+    fn a_stray_time_is_dropped_and_held_events_are_windowed_at_the_end() {
+        let mut clean = scene(4000);
+        // The last event after a 10 s pause: it completes the eighth window of 500.
+        clean.last_mut().unwrap().t_us += 10_000_000;
+        let mut det: Detector<600, 16> = Detector::new(cfg());
+        let mut expected = Vec::new();
+        for e in &clean {
+            if let Some(d) = det.push(*e) {
+                expected.push(frame(|o| emit_core_detection(d, o)));
+            }
+        }
+        while let Some(d) = det.end() {
+            expected.push(frame(|o| emit_core_detection(d, o)));
+        }
+        assert_eq!(expected.len(), 8);
+        let mut events = clean.clone();
+        events.insert(1000, Event { t_us: 3_600_000_000, x: 5, y: 5, polarity: true });
+        let mut dev = Small::new(cfg(), DeviceOptions { stats_every: 0, ..DeviceOptions::DEFAULT });
+        let mut input = frame(|o| Config { session: 5, config: cfg() }.emit(o));
+        let b = batches(&events, 128, 0);
+        let end = b.len() as u32;
+        b.iter().for_each(|f| input.extend(f));
+        input.extend(frame(|o| End { seq: end }.emit(o)));
+        let sent = drive(&mut dev, &input, 100);
+        let detections: Vec<&Vec<u8>> = sent.iter().filter(|f| payload(f)[0] == 0x02).collect();
+        assert_eq!(detections, expected.iter().collect::<Vec<_>>());
+        let k = kinds(&sent);
+        assert_eq!(&k[k.len() - 2..], &[0x03, 0x04], "the final stats come after every window");
+        match DeviceMessage::parse(&payload(&sent[sent.len() - 2])).unwrap() {
+            DeviceMessage::Stats(s) => {
+                assert_eq!((s.events_received, s.windows, s.pending_events), (4001, 8, 0));
+                assert_eq!((s.time_backwards, s.events_accepted + s.out_of_sensor), (1, 4000));
+            }
+            other => panic!("{other:?}"),
         }
     }
 

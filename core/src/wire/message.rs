@@ -90,11 +90,16 @@ pub struct Stats {
     pub events_accepted: u64,
     /// Events dropped by the input filter: pixel outside the sensor.
     pub out_of_sensor: u64,
-    /// Events dropped by the input filter: time went backwards.
+    /// Events dropped by the input filter for their time: time went backwards, or a stray
+    /// time far ahead of the events around it ([`InputStats::time_order`]; the two are one
+    /// count on the wire, whose layout predates the second).
+    ///
+    /// [`InputStats::time_order`]: crate::event::InputStats::time_order
     pub time_backwards: u64,
     /// Events lost for lack of buffer (the device's own event source overran).
     pub events_dropped: u64,
-    /// Events of the window still filling (left out at the end of a stream).
+    /// Events of the window still filling, or held by the input filter (left out at the
+    /// end of a stream).
     pub pending_events: u32,
     /// Windows completed.
     pub windows: u32,

@@ -2,7 +2,8 @@
 //! users paste into their stack.
 
 use crate::common::{
-    outln, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs, StdoutClosed,
+    no_window_error, outln, outside_warning, progress_bar, resolve_sensor, time_order_warnings, with_position,
+    CoreArgs, ReadArgs, StdoutClosed,
 };
 use crate::ranges;
 use anyhow::{bail, Context, Result};
@@ -401,18 +402,11 @@ fn detect(a: &CalibrateArgs, filled_discs: bool) -> Result<(Vec<WindowRecord>, e
     if let Some(w) = outside_warning(summary.out_of_sensor, summary.events_read, sensor) {
         eprintln!("evcal: warning: {name}: {w}");
     }
+    for w in time_order_warnings(&summary) {
+        eprintln!("evcal: warning: {name}: {w}");
+    }
     if windows.is_empty() {
-        let s = &summary;
-        let kept = s.events_read.saturating_sub(s.out_of_sensor + s.time_backwards);
-        bail!(
-            "{name}: no detection window: {} events read, {} of them outside the {}x{} sensor and {} earlier than the one before (dropped), leaving {kept}: fewer than one window of {} events",
-            s.events_read,
-            s.out_of_sensor,
-            sensor.width,
-            sensor.height,
-            s.time_backwards,
-            cfg.window.events
-        );
+        return Err(no_window_error(rec.name(), &summary, &cfg));
     }
     Ok((windows, sensor))
 }

@@ -261,6 +261,57 @@ pub fn outside_warning(outside: u64, events: u64, sensor: SensorSize) -> Option<
     })
 }
 
+/// The warnings for events the detector's input filter dropped for their time, one per
+/// reason, each saying how many (none when none were).
+pub fn time_order_warnings(s: &detections::RunSummary) -> Vec<String> {
+    let mut out = Vec::new();
+    if s.time_jumps > 0 {
+        let ahead = seconds(s.largest_jump_us);
+        out.push(if s.time_jumps == 1 {
+            format!("1 event dropped: its time was {ahead} ahead of its neighbours (a stray timestamp)")
+        } else {
+            format!(
+                "{} events dropped: their times were up to {ahead} ahead of their neighbours (stray timestamps)",
+                s.time_jumps
+            )
+        });
+    }
+    if s.time_backwards > 0 {
+        out.push(if s.time_backwards == 1 {
+            "1 event dropped: its time was earlier than the event before it".to_string()
+        } else {
+            format!("{} events dropped: their times were earlier than the events before them", s.time_backwards)
+        });
+    }
+    out
+}
+
+/// A duration given in microseconds, in seconds (milliseconds below one second).
+fn seconds(us: u64) -> String {
+    if us < 1_000_000 {
+        format!("{:.1} ms", us as f64 / 1e3)
+    } else {
+        format!("{:.1} s", us as f64 / 1e6)
+    }
+}
+
+/// The error for a run of the detector that completed no window: what was read and
+/// dropped, and what a window needs.
+pub fn no_window_error(name: &std::path::Path, s: &detections::RunSummary, cfg: &DetectConfig) -> anyhow::Error {
+    let kept = s.events_read.saturating_sub(s.out_of_sensor + s.time_backwards + s.time_jumps);
+    anyhow::anyhow!(
+        "{}: no detection window: {} events read, {} of them outside the {}x{} sensor, {} earlier than the one before and {} stray times far ahead (dropped), leaving {kept}: fewer than one window of {} events",
+        name.display(),
+        s.events_read,
+        s.out_of_sensor,
+        cfg.sensor.width,
+        cfg.sensor.height,
+        s.time_backwards,
+        s.time_jumps,
+        cfg.window.events
+    )
+}
+
 pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();

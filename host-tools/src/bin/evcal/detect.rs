@@ -1,7 +1,8 @@
 //! `evcal detect`: the detection core over a recording, one JSON line per window.
 
 use crate::common::{
-    check_output, output, outside_warning, progress_bar, resolve_sensor, with_position, CoreArgs, ReadArgs,
+    check_output, no_window_error, output, outside_warning, progress_bar, resolve_sensor, time_order_warnings,
+    with_position, CoreArgs, ReadArgs,
 };
 use anyhow::{Context, Result};
 use clap::Args;
@@ -81,12 +82,19 @@ pub fn run(a: DetectArgs) -> Result<()> {
     let s = summary?;
     if !a.quiet {
         eprintln!(
-            "evcal: {} events, {} windows, {} centres; dropped: {} outside the sensor, {} back in time, {} clusters over capacity; {} events of an unfinished last window left out",
-            s.events_read, s.windows, s.centres, s.out_of_sensor, s.time_backwards, s.dropped_clusters, s.events_in_last_partial_window
+            "evcal: {} events, {} windows, {} centres; dropped: {} outside the sensor, {} back in time, {} stray times far ahead, {} clusters over capacity; {} events of an unfinished last window left out",
+            s.events_read, s.windows, s.centres, s.out_of_sensor, s.time_backwards, s.time_jumps, s.dropped_clusters, s.events_in_last_partial_window
         );
     }
     if let Some(w) = outside_warning(s.out_of_sensor, s.events_read, sensor) {
         eprintln!("evcal: warning: {}: {w}", rec.name().display());
+    }
+    for w in time_order_warnings(&s) {
+        eprintln!("evcal: warning: {}: {w}", rec.name().display());
+    }
+    if s.windows == 0 {
+        // The (empty) output is written; the run still failed to detect anything.
+        return Err(no_window_error(rec.name(), &s, &cfg));
     }
     Ok(())
 }

@@ -473,6 +473,12 @@ pub struct WindowedEvents<I> {
     inner: I,
     filter: InputFilter,
     windower: Option<Box<Windower<HOST_MAX_EVENTS>>>,
+    /// The read error to pass on once the events before it are out.
+    error: Option<ReadError>,
+    /// The input has ended (or failed): the filter is releasing what it held.
+    ended: bool,
+    /// Events passed on.
+    sent: u64,
     /// Events read.
     pub read: u64,
     /// Events left out.
@@ -483,7 +489,16 @@ impl<I> WindowedEvents<I> {
     /// Filters `inner` for the detector `config` (or passes everything if `all`).
     pub fn new(inner: I, config: DetectConfig, all: bool) -> Self {
         let windower = (!all).then(|| Box::new(Windower::new(config.window)));
-        Self { inner, filter: InputFilter::new(config.sensor), windower, read: 0, skipped: 0 }
+        Self {
+            inner,
+            filter: InputFilter::new(config.sensor),
+            windower,
+            error: None,
+            ended: false,
+            sent: 0,
+            read: 0,
+            skipped: 0,
+        }
     }
 }
 
@@ -491,20 +506,44 @@ impl<I: Iterator<Item = Result<Event, ReadError>>> Iterator for WindowedEvents<I
     type Item = Result<Event, ReadError>;
 
     fn next(&mut self) -> Option<Self::Item> {
+        let Some(w) = self.windower.as_mut() else {
+            let e = self.inner.next()?;
+            self.read += u64::from(e.is_ok());
+            return Some(e);
+        };
         loop {
-            let e = match self.inner.next()? {
-                Ok(e) => e,
-                Err(err) => return Some(Err(err)),
-            };
-            self.read += 1;
-            let Some(w) = self.windower.as_mut() else { return Some(Ok(e)) };
-            if self.filter.check(&e).is_ok() {
-                let before = w.pending();
-                if w.push(e).is_some() || w.pending() > before {
-                    return Some(Ok(e));
+            // What the filter releases from its hold comes before anything read after it.
+            let e = match self.filter.pop() {
+                Some(e) => e,
+                None if self.ended => {
+                    self.skipped = self.read - self.sent;
+                    return self.error.take().map(Err);
                 }
+                None => {
+                    let e = match self.inner.next() {
+                        Some(Ok(e)) => e,
+                        end => {
+                            // The events held before an error or the end go out first.
+                            self.error = end.and_then(Result::err);
+                            self.ended = true;
+                            self.filter.finish();
+                            continue;
+                        }
+                    };
+                    self.read += 1;
+                    match self.filter.push(e) {
+                        Some(e) => e,
+                        // Held, or dropped.
+                        None => continue,
+                    }
+                }
+            };
+            let before = w.pending();
+            if w.push(e).is_some() || w.pending() > before {
+                self.sent += 1;
+                self.skipped = self.read - self.sent;
+                return Some(Ok(e));
             }
-            self.skipped += 1;
         }
     }
 }
@@ -536,15 +575,25 @@ mod test {
     type Cut = (evcal_core::window::WindowInfo, Vec<(u16, u16, u32)>);
 
     fn windows(events: &[Event], cfg: &DetectConfig) -> Vec<Cut> {
-        let mut f = InputFilter::new(cfg.sensor);
+        let mut f: InputFilter = InputFilter::new(cfg.sensor);
         let mut w: Box<Windower<64>> = Box::new(Windower::new(cfg.window));
         let mut out = Vec::new();
-        for e in events {
-            if f.check(e).is_ok() {
-                if let Some(info) = w.push(*e) {
-                    out.push((info, w.events().iter().map(|e| (e.x, e.y, e.dt_us)).collect()));
-                }
+        let mut take = |e: Event, out: &mut Vec<Cut>| {
+            if let Some(info) = w.push(e) {
+                out.push((info, w.events().iter().map(|e| (e.x, e.y, e.dt_us)).collect()));
             }
+        };
+        for e in events {
+            if let Some(e) = f.push(*e) {
+                take(e, &mut out);
+            }
+            while let Some(e) = f.pop() {
+                take(e, &mut out);
+            }
+        }
+        f.finish();
+        while let Some(e) = f.pop() {
+            take(e, &mut out);
         }
         out
     }

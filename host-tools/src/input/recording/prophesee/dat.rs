@@ -35,6 +35,12 @@ pub struct DatReader {
     eof: bool,
     unwrap: TimeUnwrapper,
     last_t: Option<u32>,
+    /// The last time jumped ahead of the one before by more than half the 32-bit clock: a
+    /// step back as far after it is the stream going on from a stray time, not a wrap.
+    jumped: bool,
+    /// Such stray times, and the offset of the record after the first.
+    strays: u64,
+    first_stray_at: u64,
     /// Where the input ended inside a record, and how many of its bytes it held.
     cut: Option<(u64, usize)>,
     done: bool,
@@ -118,6 +124,9 @@ impl DatReader {
             eof: false,
             unwrap: TimeUnwrapper::new(),
             last_t: None,
+            jumped: false,
+            strays: 0,
+            first_stray_at: 0,
             cut: None,
             done: false,
         })
@@ -170,6 +179,13 @@ impl DatReader {
     /// Checks a record against the header and the records before it: a file that is not
     /// a CD recording fails here rather than giving plausible garbage.
     fn check(&mut self, t: u32, d: u32) -> Result<(), String> {
+        self.check_record(t, d)?;
+        self.jumped = self.last_t.is_some_and(|last| t > last && t - last > u32::MAX / 2);
+        self.last_t = Some(t);
+        Ok(())
+    }
+
+    fn check_record(&self, t: u32, d: u32) -> Result<(), String> {
         if d >> 29 != 0 {
             return Err(format!("bad CD record: bits 29..32 are {:#x}, not zero (a polarity is one bit)", d >> 29));
         }
@@ -189,8 +205,21 @@ impl DatReader {
                 return Err(format!("time goes back from {last} to {t} µs: corrupt data, or not a CD recording"));
             }
         }
-        self.last_t = Some(t);
         Ok(())
+    }
+
+    /// The 64-bit time of record time `t`: its 32-bit wrap extended, unless the time before
+    /// was a stray far ahead (see `jumped`), which the detector's input filter then drops.
+    fn time(&mut self, t: u32) -> u64 {
+        let stray_before = self.jumped && self.last_t.is_some_and(|last| t < last && last - t > u32::MAX / 2);
+        if stray_before {
+            if self.strays == 0 {
+                self.first_stray_at = self.offset();
+            }
+            self.strays += 1;
+            return self.unwrap.take_as_is(t);
+        }
+        self.unwrap.extend(t)
     }
 }
 
@@ -226,21 +255,30 @@ impl EventSource for DatReader {
         let r = &self.buf[self.buf_at..self.buf_at + RECORD];
         let t = u32::from_le_bytes([r[0], r[1], r[2], r[3]]);
         let d = u32::from_le_bytes([r[4], r[5], r[6], r[7]]);
+        // The time is extended before the check moves `last_t` on.
+        let t_us = self.time(t);
         if let Err(m) = self.check(t, d) {
             self.done = true;
             return Some(Err(ReadError::new(&self.path, Position::Byte(self.offset()), m)));
         }
         self.buf_at += RECORD;
         self.next += 1;
-        Some(Ok(Event {
-            t_us: self.unwrap.extend(t),
-            x: (d & 0x3FFF) as u16,
-            y: ((d >> 14) & 0x3FFF) as u16,
-            polarity: (d >> 28) & 1 == 1,
-        }))
+        Some(Ok(Event { t_us, x: (d & 0x3FFF) as u16, y: ((d >> 14) & 0x3FFF) as u16, polarity: (d >> 28) & 1 == 1 }))
     }
 
     fn progress_bytes(&self) -> u64 {
         self.offset()
+    }
+
+    fn notes(&self) -> Vec<String> {
+        if self.strays == 0 {
+            return Vec::new();
+        }
+        vec![format!(
+            "{}: byte {}: {} time(s) step back by more than half the 32-bit clock right after a time that jumped ahead as far: taken as stray times (corrupt data?), not as the clock's wrap; the detector drops them",
+            self.path.display(),
+            self.first_stray_at,
+            self.strays
+        )]
     }
 }

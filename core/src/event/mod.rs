@@ -4,6 +4,10 @@
 //! microsecond wrap (71.6 minutes) keep a monotonic time axis. Sources that deliver 32-bit
 //! timestamps extend them with [`TimeUnwrapper`].
 
+mod filter;
+
+pub use filter::{InputFilter, InputStats, MAX_HELD_EVENTS, MAX_STEP_US};
+
 /// One event: a pixel whose log intensity changed by more than the contrast threshold.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -75,75 +79,14 @@ impl TimeUnwrapper {
         self.last = Some(t);
         self.high | u64::from(t)
     }
-}
 
-/// Why [`InputFilter`] dropped an event.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum Rejection {
-    /// The pixel lies outside the sensor.
-    OutOfSensor,
-    /// The timestamp is earlier than the previous accepted event's.
-    TimeBackwards,
-}
-
-/// Counts of what [`InputFilter`] accepted and dropped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct InputStats {
-    /// Events passed on.
-    pub accepted: u64,
-    /// Events dropped because their pixel lies outside the sensor.
-    pub out_of_sensor: u64,
-    /// Events dropped because time went backwards.
-    pub time_backwards: u64,
-}
-
-impl InputStats {
-    /// All events dropped, for any reason.
-    pub const fn dropped(&self) -> u64 {
-        self.out_of_sensor + self.time_backwards
-    }
-}
-
-/// Validates events before they reach the windower: pixel on the sensor, time not going
-/// backwards. Bad events are counted and dropped; nothing panics.
-#[derive(Debug, Clone)]
-pub struct InputFilter {
-    sensor: SensorSize,
-    last_t: Option<u64>,
-    stats: InputStats,
-}
-
-impl InputFilter {
-    /// A filter for a sensor of the given size.
-    pub const fn new(sensor: SensorSize) -> Self {
-        Self { sensor, last_t: None, stats: InputStats { accepted: 0, out_of_sensor: 0, time_backwards: 0 } }
-    }
-
-    /// Checks one event; `Ok` means pass it on.
-    pub fn check(&mut self, e: &Event) -> Result<(), Rejection> {
-        if !self.sensor.contains(e.x, e.y) {
-            self.stats.out_of_sensor += 1;
-            return Err(Rejection::OutOfSensor);
-        }
-        if matches!(self.last_t, Some(last) if e.t_us < last) {
-            self.stats.time_backwards += 1;
-            return Err(Rejection::TimeBackwards);
-        }
-        self.last_t = Some(e.t_us);
-        self.stats.accepted += 1;
-        Ok(())
-    }
-
-    /// What has been accepted and dropped so far.
-    pub const fn stats(&self) -> InputStats {
-        self.stats
-    }
-
-    /// The sensor this filter checks against.
-    pub const fn sensor(&self) -> SensorSize {
-        self.sensor
+    /// The 64-bit time of `t` taken as it is, in the current epoch, even where
+    /// [`extend`](Self::extend) would see a wrap: for a source that knows the time before
+    /// was a stray (it had itself jumped ahead by more than half the range), so that the
+    /// step back is no wrap but the stream going on; the input filter then drops the stray.
+    pub fn take_as_is(&mut self, t: u32) -> u64 {
+        self.last = Some(t);
+        self.high | u64::from(t)
     }
 }
 
@@ -165,22 +108,19 @@ mod test {
     }
 
     #[test]
+    fn unwrapper_takes_a_time_as_it_is_when_told() {
+        let mut u = TimeUnwrapper::new();
+        assert_eq!(u.extend(1000), 1000);
+        // A stray far ahead, then the stream going on: no wrap.
+        assert_eq!(u.extend(3_600_000_000), 3_600_000_000);
+        assert_eq!(u.take_as_is(1010), 1010);
+        assert_eq!(u.extend(1020), 1020);
+    }
+
+    #[test]
     fn unwrapper_passes_small_steps_back() {
         let mut u = TimeUnwrapper::new();
         assert_eq!(u.extend(1000), 1000);
         assert_eq!(u.extend(990), 990);
-    }
-
-    #[test]
-    fn filter_counts_and_drops() {
-        let mut f = InputFilter::new(SensorSize::new(10, 5));
-        let ev = |t, x, y| Event { t_us: t, x, y, polarity: true };
-        assert!(f.check(&ev(5, 0, 0)).is_ok());
-        assert_eq!(f.check(&ev(6, 10, 0)), Err(Rejection::OutOfSensor));
-        assert_eq!(f.check(&ev(6, 0, 5)), Err(Rejection::OutOfSensor));
-        assert_eq!(f.check(&ev(4, 9, 4)), Err(Rejection::TimeBackwards));
-        assert!(f.check(&ev(5, 9, 4)).is_ok(), "equal timestamps are fine");
-        let s = f.stats();
-        assert_eq!((s.accepted, s.out_of_sensor, s.time_backwards, s.dropped()), (2, 2, 1, 3));
     }
 }
