@@ -155,6 +155,97 @@ fn endless_nul_bytes_end_in_a_short_error_within_bounded_memory() {
     );
 }
 
+/// A ROS bag record: header fields `name=value`, then `data`.
+fn bag_record(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+    let mut h = Vec::new();
+    for (k, v) in fields {
+        h.extend(((k.len() + 1 + v.len()) as u32).to_le_bytes());
+        h.extend(k.as_bytes());
+        h.push(b'=');
+        h.extend(*v);
+    }
+    let mut r = Vec::new();
+    r.extend((h.len() as u32).to_le_bytes());
+    r.extend(h);
+    r.extend((data.len() as u32).to_le_bytes());
+    r.extend(data);
+    r
+}
+
+/// `zeros` zero bytes through `w`, a compressor, in pieces (the test never holds them).
+fn write_zeros(w: &mut impl Write, zeros: u64) {
+    let block = vec![0u8; 1 << 20];
+    for _ in 0..zeros >> 20 {
+        w.write_all(&block).unwrap();
+    }
+}
+
+/// An unindexed ROS bag of one LZ4 chunk that declares `declared` bytes and decompresses to
+/// `zeros` zero bytes (about 1/250 of that in the file).
+fn bag_bomb(path: &Path, declared: u32, zeros: u64) {
+    let mut lz = lz4_flex::frame::FrameEncoder::new(Vec::new());
+    write_zeros(&mut lz, zeros);
+    let lz = lz.finish().unwrap();
+    let mut b = b"#ROSBAG V2.0\n".to_vec();
+    b.extend(bag_record(
+        &[("op", &[3]), ("index_pos", &0u64.to_le_bytes()), ("conn_count", &[0; 4]), ("chunk_count", &[1, 0, 0, 0])],
+        &[],
+    ));
+    b.extend(bag_record(&[("op", &[5]), ("compression", b"lz4"), ("size", &declared.to_le_bytes())], &lz));
+    std::fs::write(path, b).unwrap();
+}
+
+/// dv-processing's Zstandard AEDAT4 file, its packets replaced by one packet of its event
+/// stream that decompresses to `zeros` zero bytes (a few kB in the file), and no data table.
+fn aedat4_bomb(path: &Path, zeros: u64) {
+    let mut b = std::fs::read(fixture("dv_zstd.aedat4")).unwrap();
+    let header_end = 18 + u32::from_le_bytes(b[14..18].try_into().unwrap()) as usize;
+    // the data table's position: the only i64 in the header that points into the file's tail
+    let table = (header_end as u64..b.len() as u64)
+        .rev()
+        .find_map(|v| b[18..header_end].windows(8).position(|w| w == v.to_le_bytes()))
+        .unwrap()
+        + 18;
+    b[table..table + 8].copy_from_slice(&(-1i64).to_le_bytes());
+    b.truncate(header_end);
+    let mut z = zstd::stream::Encoder::new(Vec::new(), 3).unwrap();
+    write_zeros(&mut z, zeros);
+    let z = z.finish().unwrap();
+    b.extend(0i32.to_le_bytes()); // the event stream, id 0
+    b.extend((z.len() as i32).to_le_bytes());
+    b.extend(z);
+    std::fs::write(path, b).unwrap();
+}
+
+#[test]
+fn decompression_bombs_are_refused_in_bounded_memory() {
+    // Before: a chunk declaring 1 GiB was allocated, then filled (1.06 GB of RSS for a 4 MB
+    // bag); an AEDAT4 packet was decompressed up to 512 MiB (538 MB for 19 kB). Under a
+    // 400 MB address space both died in the allocator.
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("bomb.bag");
+    bag_bomb(&bag, 1 << 30, 256 << 20);
+    let (code, _, err) = evcal_limited(400_000, &["info", s(&bag)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("bomb.bag: byte") && err.contains("in the chunk's uncompressed data at offset 0"), "{err}");
+    let aedat = dir.path().join("bomb.aedat4");
+    aedat4_bomb(&aedat, 512 << 20);
+    assert!(std::fs::metadata(&aedat).unwrap().len() < 100_000);
+    let (code, _, err) = evcal_limited(400_000, &["info", s(&aedat)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("bomb.aedat4: byte") && err.contains("decompresses to more than 67108864 bytes"), "{err}");
+}
+
+/// Writes the two decompression bombs of issue 46, full size, into `$EVCAL_BOMB_DIR`, to
+/// measure evcal's peak memory on them (`/usr/bin/time -v evcal info ...`).
+#[test]
+#[ignore = "writes files for a measurement"]
+fn write_decompression_bombs() {
+    let dir = PathBuf::from(std::env::var("EVCAL_BOMB_DIR").expect("EVCAL_BOMB_DIR"));
+    bag_bomb(&dir.join("bomb.bag"), 1 << 30, 1 << 30);
+    aedat4_bomb(&dir.join("bomb.aedat4"), 512 << 20);
+}
+
 #[test]
 fn a_binary_file_read_as_text_names_line_and_cause() {
     let dir = tempfile::tempdir().unwrap();

@@ -7,6 +7,7 @@
 
 mod aedat4;
 mod bag;
+mod bagrecords;
 mod blosc;
 mod bytes;
 mod codec;
@@ -311,6 +312,7 @@ impl Recording {
             };
         }
         let Sniffed::Ready(format) = sniffed else { unreachable!("HDF5 needs a file") };
+        time_unit_applies(format, opts.time_unit).map_err(|m| ReadError::new(&name, Position::File, m))?;
         let origin = match (&input.path, opts.rewindable) {
             (Some(p), _) => Origin::File(p.clone()),
             (None, false) => Origin::Stream(name.clone()),
@@ -357,6 +359,7 @@ impl Recording {
             Sniffed::Ready(f) => f,
         };
         let rename = |e: ReadError| e.renamed(file, name);
+        time_unit_applies(format, opts.time_unit).map_err(|m| ReadError::new(name, Position::File, m))?;
         let (sensor, len, events): (_, _, Box<dyn EventSource>) = match format {
             Format::EcalibH5 => {
                 let r = H5Reader::open(file).map_err(rename)?;
@@ -438,6 +441,45 @@ impl Iterator for Recording {
     type Item = Result<Event, ReadError>;
     fn next(&mut self) -> Option<Self::Item> {
         self.events.next_event()
+    }
+}
+
+/// Whether a time unit given by the user (`--time-unit`) can apply to `format`: an error for
+/// a format whose times have a unit of their own that differs (it would be ignored, and the
+/// user believe it was used).
+fn time_unit_applies(format: Format, unit: Option<TimeUnit>) -> Result<(), String> {
+    let Some(unit) = unit else { return Ok(()) };
+    let (own, why) = match format {
+        Format::Text | Format::EventsGroupH5 | Format::RootColumnsH5 => return Ok(()),
+        Format::Aedat4 => (Some(TimeUnit::Microseconds), "AEDAT4 timestamps are µs by the format"),
+        Format::PropheseeRaw(_) | Format::PropheseeDat => {
+            (Some(TimeUnit::Microseconds), "Prophesee timestamps are µs by the format")
+        }
+        Format::EcalibH5 => (Some(TimeUnit::Seconds), "E-Calib's events_data holds seconds by the format"),
+        Format::RosBag => (None, "ROS times are seconds and nanoseconds by the format"),
+    };
+    if own == Some(unit) {
+        return Ok(());
+    }
+    Err(format!(
+        "--time-unit {} does not apply to this file: {why} (--time-unit is for text recordings and HDF5 columns)",
+        unit.name()
+    ))
+}
+
+/// A sensor size as a file states it: `Ok(None)` for 0 by 0 (a writer that did not know it),
+/// else each side must be 1 to 65535 (coordinates are 16-bit); the error says what was
+/// stated, to follow "the header " or the like.
+pub(crate) fn stated_sensor(width: i128, height: i128) -> Result<Option<SensorSize>, String> {
+    if width == 0 && height == 0 {
+        return Ok(None);
+    }
+    match (u16::try_from(width), u16::try_from(height)) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok(Some(SensorSize::new(w, h))),
+        _ => Err(format!(
+            "states a sensor size of {width}x{height}; evcal reads sizes of 1 to {} pixels a side",
+            u16::MAX
+        )),
     }
 }
 
