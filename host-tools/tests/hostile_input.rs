@@ -387,6 +387,155 @@ fn dat_files_are_checked() {
     );
 }
 
+/// A ROS bag, unindexed, of one uncompressed chunk: the connection of `/dvs/events` and one
+/// EventArray message stating `width` x `height`.
+fn bag_of_one_message(path: &Path, width: u32, height: u32) {
+    let conn_header = [bag_record(&[("topic", b"/dvs/events"), ("type", b"dvs_msgs/EventArray")], &[])].concat();
+    // the connection header is the record's data: fields without the record's lengths
+    let conn_data = conn_header[4..conn_header.len() - 4].to_vec();
+    let mut msg = Vec::new();
+    msg.extend([0u8; 12]); // seq, stamp
+    msg.extend(0u32.to_le_bytes()); // frame_id
+    msg.extend(height.to_le_bytes());
+    msg.extend(width.to_le_bytes());
+    msg.extend(1u32.to_le_bytes());
+    msg.extend([5, 0, 6, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1]);
+    let chunk = [
+        bag_record(&[("op", &[7]), ("conn", &[0; 4]), ("topic", b"/dvs/events")], &conn_data),
+        bag_record(&[("op", &[2]), ("conn", &[0; 4]), ("time", &[0; 8])], &msg),
+    ]
+    .concat();
+    let mut b = b"#ROSBAG V2.0\n".to_vec();
+    b.extend(bag_record(
+        &[
+            ("op", &[3]),
+            ("index_pos", &0u64.to_le_bytes()),
+            ("conn_count", &[1, 0, 0, 0]),
+            ("chunk_count", &[1, 0, 0, 0]),
+        ],
+        &[],
+    ));
+    b.extend(bag_record(
+        &[("op", &[5]), ("compression", b"none"), ("size", &(chunk.len() as u32).to_le_bytes())],
+        &chunk,
+    ));
+    std::fs::write(path, b).unwrap();
+}
+
+/// Root-column HDF5 (x, y, t, p) with attributes on the file.
+fn h5_with_attrs(path: &Path, attrs: impl FnOnce(&hdf5::File)) {
+    let f = hdf5::File::create(path).unwrap();
+    f.new_dataset_builder().with_data(&[1u16, 2, 3]).create("x").unwrap();
+    f.new_dataset_builder().with_data(&[1u16, 2, 3]).create("y").unwrap();
+    f.new_dataset_builder().with_data(&[1u8, 0, 1]).create("p").unwrap();
+    f.new_dataset_builder().with_data(&[5i64, 6, 7]).create("t").unwrap();
+    attrs(&f);
+}
+
+/// Before: every reader took a sensor size outside 1..65535 (or not a whole number) as no
+/// size at all ("does not state its sensor size"), an HDF5 width of 346.7 as 346, and an
+/// unknown HDF5 time unit as none.
+#[test]
+fn stated_sizes_and_units_evcal_cannot_use_are_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let open_err = |p: &Path| Recording::open(p).err().map(|e| e.to_string()).unwrap_or_default();
+    let range = "evcal reads sizes of 1 to 65535 pixels a side";
+
+    let p = dir.path().join("big.bag");
+    bag_of_one_message(&p, 70_000, 260);
+    let e = open_err(&p);
+    assert!(e.contains("big.bag: byte") && e.contains("states a sensor size of 70000x260") && e.contains(range), "{e}");
+    bag_of_one_message(&p, 346, 260);
+    assert_eq!(Recording::open(&p).unwrap().sensor, Some(SensorSize::DAVIS346));
+
+    let p = dir.path().join("big.dat");
+    std::fs::write(&p, b"% Height 480\n% Version 2\n% Width 70000\n\x0c\x08").unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.dat") && e.contains("70000x480") && e.contains(range), "{e}");
+    let p = dir.path().join("big.raw");
+    std::fs::write(&p, b"% evt 3.0\n% geometry 1280x100000\n% end\n").unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.raw") && e.contains("% geometry") && e.contains("1280x100000"), "{e}");
+
+    let p = dir.path().join("big.aedat4");
+    let mut b = std::fs::read(fixture("dv_lz4.aedat4")).unwrap();
+    let at = b.windows(5).position(|w| w == b">346<").unwrap();
+    b[at + 1..at + 4].copy_from_slice(b"-34");
+    std::fs::write(&p, b).unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.aedat4") && e.contains("-34x260") && e.contains(range), "{e}");
+
+    let p = dir.path().join("frac.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<f64>().create("width").unwrap().write_scalar(&346.7).unwrap();
+        f.new_attr::<f64>().create("height").unwrap().write_scalar(&260.0).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("frac.h5") && e.contains("width = 346.7 on the file is not a whole number"), "{e}");
+    let p = dir.path().join("big.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<i64>().create("width").unwrap().write_scalar(&-346i64).unwrap();
+        f.new_attr::<f64>().create("height").unwrap().write_scalar(&260.0).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("big.h5") && e.contains("-346x260") && e.contains(range), "{e}");
+    let p = dir.path().join("ok.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<f64>().create("width").unwrap().write_scalar(&346.0).unwrap();
+        f.new_attr::<u32>().create("height").unwrap().write_scalar(&260u32).unwrap();
+    });
+    assert_eq!(Recording::open(&p).unwrap().sensor, Some(SensorSize::DAVIS346));
+
+    let p = dir.path().join("furlongs.h5");
+    h5_with_attrs(&p, |f| {
+        let unit: hdf5::types::VarLenUnicode = "furlongs".parse().unwrap();
+        f.new_attr::<hdf5::types::VarLenUnicode>().create("unit").unwrap().write_scalar(&unit).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("furlongs.h5") && e.contains("unit=\"furlongs\"") && e.contains("--time-unit"), "{e}");
+    let opts = OpenOptions { time_unit: Some(TimeUnit::Microseconds), ..Default::default() };
+    assert_eq!(read_all(Recording::open_with(&p, &opts).unwrap()).len(), 3, "--time-unit decides");
+}
+
+/// Before: the `%` lines past the first MiB of a RAW header were decoded as events.
+#[test]
+fn a_prophesee_header_past_the_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("long.raw");
+    let mut b = b"% evt 2.0\n% geometry 640x480\n".to_vec();
+    while b.len() < 1_100_000 {
+        b.extend(b"% comment a long header line of a long header\n");
+    }
+    b.extend(b"% end\n");
+    b.extend([0u8; 64]);
+    std::fs::write(&p, &b).unwrap();
+    let e = Recording::open(&p).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(e.contains("long.raw") && e.contains("goes on past 1048576 bytes"), "{e}");
+    // A header just under the limit is read.
+    b.truncate(1_000_000);
+    let cut = b.iter().rposition(|&c| c == b'\n').unwrap() + 1;
+    b.truncate(cut);
+    b.extend(b"% end\n");
+    std::fs::write(&p, &b).unwrap();
+    assert!(Recording::open(&p).is_ok());
+}
+
+/// Before: `--time-unit` was ignored without a word for formats whose times have their own
+/// unit.
+#[test]
+fn a_time_unit_that_cannot_apply_is_refused() {
+    for (name, unit) in [("dv_lz4.aedat4", "ns"), ("ros_lz4.bag", "us"), ("ecalib.h5", "us")] {
+        let (code, _, err) = evcal(&["info", "--time-unit", unit, s(&fixture(name))]);
+        assert_eq!(code, Some(1), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(&format!("--time-unit {unit} does not apply")), "{err}");
+    }
+    let e = evcal(&["info", "--time-unit", "ns", s(&fixture("dv_lz4.aedat4"))]).2;
+    assert!(e.contains("AEDAT4 timestamps are µs by the format"), "{e}");
+    // the format's own unit is no contradiction
+    let (code, _, err) = evcal(&["info", "--time-unit", "us", s(&fixture("dv_lz4.aedat4"))]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
 // ---- 4. silent wrong results ----------------------------------------------------------------
 
 #[test]
