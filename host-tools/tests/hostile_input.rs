@@ -612,6 +612,56 @@ fn window(seq: u32, t: u64) -> String {
     format!(r#"{{"seq":{seq},"t_ref_us":{t},"events":4000,"noise":10,"centers":[]}}"#)
 }
 
+/// Before: centres listed twice reached the grid finder, which blamed `--pattern`; detections
+/// piped in were read as a text recording ("not a text recording"); a 300-digit option value
+/// was quoted back in full.
+#[test]
+fn detections_repeated_piped_and_numbers_too_long_to_quote() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let calib = |input: &str| {
+        vec!["calibrate", input, "--sensor", "346x260", "--pattern", "4x11", "--spacing", "0.024", "--out", s(&out)]
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    let c = r#"{"u":10.5,"v":20.25,"r":3,"spread":0.2,"n":40,"converged":true}"#;
+    let twice = format!(r#"{{"seq":1,"t_ref_us":200,"events":4000,"noise":10,"centers":[{c},{c}]}}"#);
+    let p = dir.path().join("det.jsonl");
+    std::fs::write(&p, [window(0, 100), twice.clone()].join("\n")).unwrap();
+    let args = calib(s(&p));
+    let (code, _, err) = evcal(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("det.jsonl") && err.contains("line 2: window 1 lists the centre (10.5, 20.25) 2 times"),
+        "{err}"
+    );
+    assert!(!err.contains("--pattern"), "{err}");
+
+    // The same, piped: read as detections, the line named as in the file.
+    let args = calib("-");
+    let (code, _, err) = evcal_stdin(&args.iter().map(String::as_str).collect::<Vec<_>>(), twice.as_bytes());
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("<stdin>") && err.contains("line 1: window 1 lists the centre"), "{err}");
+    assert!(!err.contains("text recording"), "{err}");
+    // A recording piped in that cannot be read is said to be read as one.
+    let (code, _, err) = evcal_stdin(&args.iter().map(String::as_str).collect::<Vec<_>>(), b"#ROSBAG V2.0\n\x01\x02");
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("standard input is read as a recording"), "{err}");
+
+    // Numbers too long to quote: at most 40 bytes of them.
+    let long = format!("1{}", "0".repeat(300));
+    for args in [
+        vec!["calibrate", s(&p), "--pattern", "4x11", "--spacing", "0.024", "--events-per-window", &long],
+        vec!["calibrate", s(&p), "--pattern", "4x11", "--spacing", "1e300"],
+        vec!["detect", s(&p), "--sensor", &long],
+    ] {
+        let (code, _, err) = evcal(&args);
+        assert_ne!(code, Some(0), "{args:?}: {err}");
+        assert!(!err.contains(&"0".repeat(41)), "{args:?}: {err}");
+    }
+}
+
 #[test]
 fn detections_out_of_order_are_refused() {
     let dir = tempfile::tempdir().unwrap();

@@ -17,7 +17,7 @@ use crate::{
 };
 use evcal_core::{
     detect::DetectConfig,
-    event::{Event, InputFilter},
+    event::{Event, InputFilter, Rejection},
     window::Windower,
     wire::{emit_events, events_that_fit, Config, End, Hello, HelloReply, Stats},
 };
@@ -81,9 +81,14 @@ pub struct ReplayReport {
     pub device: Option<Hello>,
     /// Events read from the recording.
     pub events_read: u64,
-    /// Events left out because no window of the device would hold them (see
-    /// [`WindowedEvents`]).
+    /// Events left out (see [`WindowedEvents`]): outside the sensor, earlier than the event
+    /// before, or in no window of the device.
     pub events_skipped: u64,
+    /// Of those, the events outside the sensor.
+    pub events_out_of_sensor: u64,
+    /// Of those, the events earlier than the one before (the device's input filter would
+    /// drop them).
+    pub events_time_backwards: u64,
     /// Events put into batches and sent.
     pub events_sent: u64,
     /// Batches sent (first transmissions).
@@ -140,6 +145,7 @@ pub fn replay(
     let mut used = WindowedEvents::new(events, config, opts.all_events);
     let streamed = stream(link, &mut used, &hello, opts, stop, &mut report, &mut seq, on);
     (report.events_read, report.events_skipped) = (used.read, used.skipped);
+    (report.events_out_of_sensor, report.events_time_backwards) = (used.out_of_sensor, used.time_backwards);
     streamed?;
     if let Some(s) = report.stats.filter(|s| s.end_of_stream) {
         let missing = s.windows.saturating_sub(seq.expected());
@@ -464,13 +470,25 @@ pub struct WindowedEvents<I> {
     pub read: u64,
     /// Events left out.
     pub skipped: u64,
+    /// Of those, the events outside the sensor.
+    pub out_of_sensor: u64,
+    /// Of those, the events earlier than the one before.
+    pub time_backwards: u64,
 }
 
 impl<I> WindowedEvents<I> {
     /// Filters `inner` for the detector `config` (or passes everything if `all`).
     pub fn new(inner: I, config: DetectConfig, all: bool) -> Self {
         let windower = (!all).then(|| Box::new(Windower::new(config.window)));
-        Self { inner, filter: InputFilter::new(config.sensor), windower, read: 0, skipped: 0 }
+        Self {
+            inner,
+            filter: InputFilter::new(config.sensor),
+            windower,
+            read: 0,
+            skipped: 0,
+            out_of_sensor: 0,
+            time_backwards: 0,
+        }
     }
 }
 
@@ -485,11 +503,15 @@ impl<I: Iterator<Item = Result<Event, ReadError>>> Iterator for WindowedEvents<I
             };
             self.read += 1;
             let Some(w) = self.windower.as_mut() else { return Some(Ok(e)) };
-            if self.filter.check(&e).is_ok() {
-                let before = w.pending();
-                if w.push(e).is_some() || w.pending() > before {
-                    return Some(Ok(e));
+            match self.filter.check(&e) {
+                Ok(()) => {
+                    let before = w.pending();
+                    if w.push(e).is_some() || w.pending() > before {
+                        return Some(Ok(e));
+                    }
                 }
+                Err(Rejection::OutOfSensor) => self.out_of_sensor += 1,
+                Err(Rejection::TimeBackwards) => self.time_backwards += 1,
             }
             self.skipped += 1;
         }
@@ -557,9 +579,16 @@ mod test {
                 .collect();
             let mut cfg = DetectConfig::new(SensorSize::new(20, 20));
             cfg.window = WindowConfig { events: n, step_us };
-            let used: Vec<Event> =
-                WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, false).map(|e| e.unwrap()).collect();
+            let mut it = WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, false);
+            let used: Vec<Event> = it.by_ref().map(|e| e.unwrap()).collect();
             prop_assert!(used.len() <= events.len());
+            // Each event left out is counted once, under its reason.
+            let mut f = InputFilter::new(cfg.sensor);
+            for e in &events {
+                let _ = f.check(e);
+            }
+            prop_assert_eq!((it.out_of_sensor, it.time_backwards), (f.stats().out_of_sensor, f.stats().time_backwards));
+            prop_assert_eq!(it.skipped, events.len() as u64 - used.len() as u64);
             prop_assert_eq!(windows(&used, &cfg), windows(&events, &cfg));
             let all: Vec<Event> =
                 WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, true).map(|e| e.unwrap()).collect();

@@ -493,13 +493,14 @@ pub fn parse_sensor(s: &str) -> Result<SensorSize, String> {
         "genx320" => return Ok(SensorSize::new(320, 320)),
         _ => {}
     }
+    let q = quote(s.as_bytes(), 40);
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| {
-        format!("'{s}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320")
+        format!("'{q}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320")
     })?;
-    let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{s}'"))?;
-    let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{s}'"))?;
+    let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{q}' (1 to 65535)"))?;
+    let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{q}' (1 to 65535)"))?;
     if w == 0 || h == 0 {
-        return Err(format!("sensor size '{s}' must be at least 1x1"));
+        return Err(format!("sensor size '{q}' must be at least 1x1"));
     }
     Ok(SensorSize::new(w, h))
 }
