@@ -22,9 +22,9 @@ mod text;
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use bytes::{quote, STDIN_NAME};
-pub use h5::{write_ecalib_h5, H5Reader};
+pub use h5::{write_ecalib_h5, EcalibH5Writer, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
-pub use text::{write_text, TextReader, MAX_LINE};
+pub use text::{write_text, TextReader, TextWriter, MAX_LINE};
 
 use bytes::{Input, TeeHandle};
 use evcal_core::{

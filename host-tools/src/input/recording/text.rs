@@ -352,14 +352,37 @@ fn to_us(s: &str, unit: TimeUnit) -> Option<u64> {
 /// Writes events as a text recording (`t x y p`, t in seconds with 6 decimals), with a
 /// `width height` header line when `sensor` is given.
 pub fn write_text(path: &Path, sensor: Option<SensorSize>, events: &[Event]) -> std::io::Result<()> {
-    let mut w = BufWriter::with_capacity(1 << 16, File::create(path)?);
-    if let Some(s) = sensor {
-        writeln!(w, "{} {}", s.width, s.height)?;
+    let mut w = TextWriter::create(path, sensor)?;
+    w.write(events)?;
+    w.finish()
+}
+
+/// Writes a text recording as [`write_text`] does, the events as they come.
+pub struct TextWriter(BufWriter<File>);
+
+impl TextWriter {
+    /// Creates `path` (replacing it) and writes the `width height` header if `sensor` is given.
+    pub fn create(path: &Path, sensor: Option<SensorSize>) -> std::io::Result<Self> {
+        let mut w = BufWriter::with_capacity(1 << 16, File::create(path)?);
+        if let Some(s) = sensor {
+            writeln!(w, "{} {}", s.width, s.height)?;
+        }
+        Ok(Self(w))
     }
-    for e in events {
-        writeln!(w, "{}.{:06} {} {} {}", e.t_us / 1_000_000, e.t_us % 1_000_000, e.x, e.y, u8::from(e.polarity))?;
+
+    /// Appends `events`.
+    pub fn write(&mut self, events: &[Event]) -> std::io::Result<()> {
+        for e in events {
+            let (s, us) = (e.t_us / 1_000_000, e.t_us % 1_000_000);
+            writeln!(self.0, "{s}.{us:06} {} {} {}", e.x, e.y, u8::from(e.polarity))?;
+        }
+        Ok(())
     }
-    w.flush()
+
+    /// Writes what is buffered.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        self.0.flush()
+    }
 }
 
 #[cfg(test)]
