@@ -187,7 +187,7 @@ impl H5ColumnsReader {
                 let u = if let Some(u) = unit {
                     u
                 } else if let Some(u) = from_attr {
-                    u.map_err(|m| err(m))?
+                    u.map_err(&err)?
                 } else if t_offset.is_some() {
                     TimeUnit::Microseconds
                 } else {
@@ -210,7 +210,7 @@ impl H5ColumnsReader {
             .flatten()
             .find_map(|loc| size_attrs(loc).transpose())
             .transpose()
-            .map_err(|m| err(m))?;
+            .map_err(&err)?;
         Ok(Self {
             path: path.to_path_buf(),
             x: column(&x, "x")?,
