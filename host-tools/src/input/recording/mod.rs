@@ -6,6 +6,7 @@
 //! reader then consumes, so a pipe or standard input (`-`) loses nothing.
 
 mod aedat4;
+mod aedat4info;
 mod bag;
 mod bagrecords;
 mod blosc;
@@ -13,6 +14,7 @@ mod bytes;
 mod codec;
 mod flatbuf;
 mod h5;
+mod h5attrs;
 mod h5chunks;
 mod h5cols;
 mod h5file;
