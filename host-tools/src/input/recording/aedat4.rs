@@ -31,9 +31,10 @@ use std::{
 pub const MAGIC: &[u8; 14] = b"#!AER-DAT4.0\r\n";
 
 /// Largest packet accepted, compressed or decompressed: 4 M events, far above what DV and
-/// dv-processing write (a packet per camera transfer or per `EventStore` shard: milliseconds
-/// of events, kB to a few MB); a packet has no declared size, so this bounds what a corrupt or
-/// hostile one (a few kB of Zstandard can expand to gigabytes) makes evcal hold.
+/// dv-processing write (a packet per camera transfer, or per part of an `EventStore` as it
+/// was built: milliseconds of events, kB to a few MB); a packet has no declared size, so this
+/// bounds what a corrupt or hostile one (19 kB of Zstandard can expand to 512 MB) makes evcal
+/// hold.
 const MAX_PACKET: u64 = 64 << 20;
 
 /// Largest data table accepted, compressed or decompressed: some 40 bytes a packet, so about
