@@ -163,6 +163,132 @@ fn endless_nul_bytes_end_in_a_short_error_within_bounded_memory() {
     );
 }
 
+/// A ROS bag record: header fields `name=value`, then `data`.
+fn bag_record(fields: &[(&str, &[u8])], data: &[u8]) -> Vec<u8> {
+    let mut h = Vec::new();
+    for (k, v) in fields {
+        h.extend(((k.len() + 1 + v.len()) as u32).to_le_bytes());
+        h.extend(k.as_bytes());
+        h.push(b'=');
+        h.extend(*v);
+    }
+    let mut r = Vec::new();
+    r.extend((h.len() as u32).to_le_bytes());
+    r.extend(h);
+    r.extend((data.len() as u32).to_le_bytes());
+    r.extend(data);
+    r
+}
+
+/// `zeros` zero bytes through `w`, a compressor, in pieces (the test never holds them).
+fn write_zeros(w: &mut impl Write, zeros: u64) {
+    let block = vec![0u8; 1 << 20];
+    for _ in 0..zeros >> 20 {
+        w.write_all(&block).unwrap();
+    }
+}
+
+/// An unindexed ROS bag of one LZ4 chunk that declares `declared` bytes and decompresses to
+/// `zeros` zero bytes (about 1/250 of that in the file).
+fn bag_bomb(path: &Path, declared: u32, zeros: u64) {
+    let mut lz = lz4_flex::frame::FrameEncoder::new(Vec::new());
+    write_zeros(&mut lz, zeros);
+    let lz = lz.finish().unwrap();
+    let mut b = b"#ROSBAG V2.0\n".to_vec();
+    b.extend(bag_record(
+        &[("op", &[3]), ("index_pos", &0u64.to_le_bytes()), ("conn_count", &[0; 4]), ("chunk_count", &[1, 0, 0, 0])],
+        &[],
+    ));
+    b.extend(bag_record(&[("op", &[5]), ("compression", b"lz4"), ("size", &declared.to_le_bytes())], &lz));
+    std::fs::write(path, b).unwrap();
+}
+
+/// dv-processing's Zstandard AEDAT4 file, its packets replaced by one packet of its event
+/// stream that decompresses to `zeros` zero bytes (a few kB in the file), and no data table.
+fn aedat4_bomb(path: &Path, zeros: u64) {
+    let mut b = std::fs::read(fixture("dv_zstd.aedat4")).unwrap();
+    let header_end = 18 + u32::from_le_bytes(b[14..18].try_into().unwrap()) as usize;
+    // the data table's position: the only i64 in the header that points into the file's tail
+    let table = (header_end as u64..b.len() as u64)
+        .rev()
+        .find_map(|v| b[18..header_end].windows(8).position(|w| w == v.to_le_bytes()))
+        .unwrap()
+        + 18;
+    b[table..table + 8].copy_from_slice(&(-1i64).to_le_bytes());
+    b.truncate(header_end);
+    let mut z = zstd::stream::Encoder::new(Vec::new(), 3).unwrap();
+    write_zeros(&mut z, zeros);
+    let z = z.finish().unwrap();
+    b.extend(0i32.to_le_bytes()); // the event stream, id 0
+    b.extend((z.len() as i32).to_le_bytes());
+    b.extend(z);
+    std::fs::write(path, b).unwrap();
+}
+
+#[test]
+fn decompression_bombs_are_refused_in_bounded_memory() {
+    // Before: a chunk declaring 1 GiB was allocated, then filled (1.06 GB of RSS for a 4 MB
+    // bag); an AEDAT4 packet was decompressed up to 512 MiB (538 MB for 19 kB). Under a
+    // 400 MB address space both died in the allocator.
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("bomb.bag");
+    bag_bomb(&bag, 1 << 30, 256 << 20);
+    let (code, _, err) = evcal_limited(400_000, &["info", s(&bag)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("bomb.bag: byte") && err.contains("in the chunk's uncompressed data at offset 0"), "{err}");
+    let aedat = dir.path().join("bomb.aedat4");
+    aedat4_bomb(&aedat, 512 << 20);
+    assert!(std::fs::metadata(&aedat).unwrap().len() < 100_000);
+    let (code, _, err) = evcal_limited(400_000, &["info", s(&aedat)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("bomb.aedat4: byte") && err.contains("decompresses to more than 67108864 bytes"), "{err}");
+}
+
+/// Before: `simulate` held every event until the end (16 bytes each, 32 more for HDF5): a
+/// leak of 10 kHz a pixel over 0.1 s took 1.4 GB. Now they are written as they come: these
+/// 5 M events (80 MB held, 200 MB while the vector grew) fit in 150 MB of address space.
+#[test]
+fn simulate_writes_as_it_goes_in_bounded_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut counts = Vec::new();
+    for name in ["rec.txt", "rec.h5"] {
+        // A folder each: the truth.json beside a recording is that recording's.
+        let folder = dir.path().join(name.replace('.', "-"));
+        std::fs::create_dir(&folder).unwrap();
+        let out = folder.join(name);
+        let (code, _, err) = evcal_limited(
+            150_000,
+            &[
+                "simulate",
+                "--shot-noise-hz",
+                "1e3",
+                "--seconds",
+                "0.1",
+                "--out",
+                s(&out),
+                "--events-per-window",
+                "30000",
+            ],
+        );
+        assert_eq!(code, Some(0), "{name}: {err}");
+        let n: u64 = err.split("evcal: ").nth(1).and_then(|l| l.split(' ').next()).unwrap().parse().unwrap();
+        assert!(n > 4_000_000, "{name}: {n} events");
+        counts.push(n);
+    }
+    assert_eq!(counts[0], counts[1], "the same events whatever the format");
+    assert_eq!(Recording::open(&dir.path().join("rec-h5/rec.h5")).unwrap().len, Some(counts[1]));
+}
+
+/// Writes the two decompression bombs of issue 46, full size, into `$EVCAL_BOMB_DIR`, to
+/// measure evcal's peak memory on them (`/usr/bin/time -v evcal info ...`).
+#[test]
+#[ignore = "writes files for a measurement"]
+fn write_decompression_bombs() {
+    let dir = PathBuf::from(std::env::var("EVCAL_BOMB_DIR").expect("EVCAL_BOMB_DIR"));
+    bag_bomb(&dir.join("bomb.bag"), 1 << 30, 1 << 30);
+    aedat4_bomb(&dir.join("bomb.aedat4"), 512 << 20);
+}
+
 #[test]
 fn a_binary_file_read_as_text_names_line_and_cause() {
     let dir = tempfile::tempdir().unwrap();
@@ -306,6 +432,155 @@ fn dat_files_are_checked() {
     );
 }
 
+/// A ROS bag, unindexed, of one uncompressed chunk: the connection of `/dvs/events` and one
+/// EventArray message stating `width` x `height`.
+fn bag_of_one_message(path: &Path, width: u32, height: u32) {
+    let conn_header = [bag_record(&[("topic", b"/dvs/events"), ("type", b"dvs_msgs/EventArray")], &[])].concat();
+    // the connection header is the record's data: fields without the record's lengths
+    let conn_data = conn_header[4..conn_header.len() - 4].to_vec();
+    let mut msg = Vec::new();
+    msg.extend([0u8; 12]); // seq, stamp
+    msg.extend(0u32.to_le_bytes()); // frame_id
+    msg.extend(height.to_le_bytes());
+    msg.extend(width.to_le_bytes());
+    msg.extend(1u32.to_le_bytes());
+    msg.extend([5, 0, 6, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1]);
+    let chunk = [
+        bag_record(&[("op", &[7]), ("conn", &[0; 4]), ("topic", b"/dvs/events")], &conn_data),
+        bag_record(&[("op", &[2]), ("conn", &[0; 4]), ("time", &[0; 8])], &msg),
+    ]
+    .concat();
+    let mut b = b"#ROSBAG V2.0\n".to_vec();
+    b.extend(bag_record(
+        &[
+            ("op", &[3]),
+            ("index_pos", &0u64.to_le_bytes()),
+            ("conn_count", &[1, 0, 0, 0]),
+            ("chunk_count", &[1, 0, 0, 0]),
+        ],
+        &[],
+    ));
+    b.extend(bag_record(
+        &[("op", &[5]), ("compression", b"none"), ("size", &(chunk.len() as u32).to_le_bytes())],
+        &chunk,
+    ));
+    std::fs::write(path, b).unwrap();
+}
+
+/// Root-column HDF5 (x, y, t, p) with attributes on the file.
+fn h5_with_attrs(path: &Path, attrs: impl FnOnce(&hdf5::File)) {
+    let f = hdf5::File::create(path).unwrap();
+    f.new_dataset_builder().with_data(&[1u16, 2, 3]).create("x").unwrap();
+    f.new_dataset_builder().with_data(&[1u16, 2, 3]).create("y").unwrap();
+    f.new_dataset_builder().with_data(&[1u8, 0, 1]).create("p").unwrap();
+    f.new_dataset_builder().with_data(&[5i64, 6, 7]).create("t").unwrap();
+    attrs(&f);
+}
+
+/// Before: every reader took a sensor size outside 1..65535 (or not a whole number) as no
+/// size at all ("does not state its sensor size"), an HDF5 width of 346.7 as 346, and an
+/// unknown HDF5 time unit as none.
+#[test]
+fn stated_sizes_and_units_evcal_cannot_use_are_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let open_err = |p: &Path| Recording::open(p).err().map(|e| e.to_string()).unwrap_or_default();
+    let range = "evcal reads sizes of 1 to 65535 pixels a side";
+
+    let p = dir.path().join("big.bag");
+    bag_of_one_message(&p, 70_000, 260);
+    let e = open_err(&p);
+    assert!(e.contains("big.bag: byte") && e.contains("states a sensor size of 70000x260") && e.contains(range), "{e}");
+    bag_of_one_message(&p, 346, 260);
+    assert_eq!(Recording::open(&p).unwrap().sensor, Some(SensorSize::DAVIS346));
+
+    let p = dir.path().join("big.dat");
+    std::fs::write(&p, b"% Height 480\n% Version 2\n% Width 70000\n\x0c\x08").unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.dat") && e.contains("70000x480") && e.contains(range), "{e}");
+    let p = dir.path().join("big.raw");
+    std::fs::write(&p, b"% evt 3.0\n% geometry 1280x100000\n% end\n").unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.raw") && e.contains("% geometry") && e.contains("1280x100000"), "{e}");
+
+    let p = dir.path().join("big.aedat4");
+    let mut b = std::fs::read(fixture("dv_lz4.aedat4")).unwrap();
+    let at = b.windows(5).position(|w| w == b">346<").unwrap();
+    b[at + 1..at + 4].copy_from_slice(b"-34");
+    std::fs::write(&p, b).unwrap();
+    let e = open_err(&p);
+    assert!(e.contains("big.aedat4") && e.contains("-34x260") && e.contains(range), "{e}");
+
+    let p = dir.path().join("frac.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<f64>().create("width").unwrap().write_scalar(&346.7).unwrap();
+        f.new_attr::<f64>().create("height").unwrap().write_scalar(&260.0).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("frac.h5") && e.contains("width = 346.7 on the file is not a whole number"), "{e}");
+    let p = dir.path().join("big.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<i64>().create("width").unwrap().write_scalar(&-346i64).unwrap();
+        f.new_attr::<f64>().create("height").unwrap().write_scalar(&260.0).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("big.h5") && e.contains("-346x260") && e.contains(range), "{e}");
+    let p = dir.path().join("ok.h5");
+    h5_with_attrs(&p, |f| {
+        f.new_attr::<f64>().create("width").unwrap().write_scalar(&346.0).unwrap();
+        f.new_attr::<u32>().create("height").unwrap().write_scalar(&260u32).unwrap();
+    });
+    assert_eq!(Recording::open(&p).unwrap().sensor, Some(SensorSize::DAVIS346));
+
+    let p = dir.path().join("furlongs.h5");
+    h5_with_attrs(&p, |f| {
+        let unit: hdf5::types::VarLenUnicode = "furlongs".parse().unwrap();
+        f.new_attr::<hdf5::types::VarLenUnicode>().create("unit").unwrap().write_scalar(&unit).unwrap();
+    });
+    let e = open_err(&p);
+    assert!(e.contains("furlongs.h5") && e.contains("unit=\"furlongs\"") && e.contains("--time-unit"), "{e}");
+    let opts = OpenOptions { time_unit: Some(TimeUnit::Microseconds), ..Default::default() };
+    assert_eq!(read_all(Recording::open_with(&p, &opts).unwrap()).len(), 3, "--time-unit decides");
+}
+
+/// Before: the `%` lines past the first MiB of a RAW header were decoded as events.
+#[test]
+fn a_prophesee_header_past_the_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("long.raw");
+    let mut b = b"% evt 2.0\n% geometry 640x480\n".to_vec();
+    while b.len() < 1_100_000 {
+        b.extend(b"% comment a long header line of a long header\n");
+    }
+    b.extend(b"% end\n");
+    b.extend([0u8; 64]);
+    std::fs::write(&p, &b).unwrap();
+    let e = Recording::open(&p).err().map(|e| e.to_string()).unwrap_or_default();
+    assert!(e.contains("long.raw") && e.contains("goes on past 1048576 bytes"), "{e}");
+    // A header just under the limit is read.
+    b.truncate(1_000_000);
+    let cut = b.iter().rposition(|&c| c == b'\n').unwrap() + 1;
+    b.truncate(cut);
+    b.extend(b"% end\n");
+    std::fs::write(&p, &b).unwrap();
+    assert!(Recording::open(&p).is_ok());
+}
+
+/// Before: `--time-unit` was ignored without a word for formats whose times have their own
+/// unit.
+#[test]
+fn a_time_unit_that_cannot_apply_is_refused() {
+    for (name, unit) in [("dv_lz4.aedat4", "ns"), ("ros_lz4.bag", "us"), ("ecalib.h5", "us")] {
+        let (code, _, err) = evcal(&["info", "--time-unit", unit, s(&fixture(name))]);
+        assert_eq!(code, Some(1), "{name}: {err}");
+        assert!(err.contains(name) && err.contains(&format!("--time-unit {unit} does not apply")), "{err}");
+    }
+    let e = evcal(&["info", "--time-unit", "ns", s(&fixture("dv_lz4.aedat4"))]).2;
+    assert!(e.contains("AEDAT4 timestamps are µs by the format"), "{e}");
+    // the format's own unit is no contradiction
+    let (code, _, err) = evcal(&["info", "--time-unit", "us", s(&fixture("dv_lz4.aedat4"))]);
+    assert_eq!(code, Some(0), "{err}");
+}
+
 // ---- 4. silent wrong results ----------------------------------------------------------------
 
 #[test]
@@ -381,6 +656,56 @@ fn sensor_disagreements_are_said() {
 
 fn window(seq: u32, t: u64) -> String {
     format!(r#"{{"seq":{seq},"t_ref_us":{t},"events":4000,"noise":10,"centers":[]}}"#)
+}
+
+/// Before: centres listed twice reached the grid finder, which blamed `--pattern`; detections
+/// piped in were read as a text recording ("not a text recording"); a 300-digit option value
+/// was quoted back in full.
+#[test]
+fn detections_repeated_piped_and_numbers_too_long_to_quote() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let calib = |input: &str| {
+        vec!["calibrate", input, "--sensor", "346x260", "--pattern", "4x11", "--spacing", "0.024", "--out", s(&out)]
+            .into_iter()
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    let c = r#"{"u":10.5,"v":20.25,"r":3,"spread":0.2,"n":40,"converged":true}"#;
+    let twice = format!(r#"{{"seq":1,"t_ref_us":200,"events":4000,"noise":10,"centers":[{c},{c}]}}"#);
+    let p = dir.path().join("det.jsonl");
+    std::fs::write(&p, [window(0, 100), twice.clone()].join("\n")).unwrap();
+    let args = calib(s(&p));
+    let (code, _, err) = evcal(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("det.jsonl") && err.contains("line 2: window 1 lists the centre (10.5, 20.25) 2 times"),
+        "{err}"
+    );
+    assert!(!err.contains("--pattern"), "{err}");
+
+    // The same, piped: read as detections, the line named as in the file.
+    let args = calib("-");
+    let (code, _, err) = evcal_stdin(&args.iter().map(String::as_str).collect::<Vec<_>>(), twice.as_bytes());
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("<stdin>") && err.contains("line 1: window 1 lists the centre"), "{err}");
+    assert!(!err.contains("text recording"), "{err}");
+    // A recording piped in that cannot be read is said to be read as one.
+    let (code, _, err) = evcal_stdin(&args.iter().map(String::as_str).collect::<Vec<_>>(), b"#ROSBAG V2.0\n\x01\x02");
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("standard input is read as a recording"), "{err}");
+
+    // Numbers too long to quote: at most 40 bytes of them.
+    let long = format!("1{}", "0".repeat(300));
+    for args in [
+        vec!["calibrate", s(&p), "--pattern", "4x11", "--spacing", "0.024", "--events-per-window", &long],
+        vec!["calibrate", s(&p), "--pattern", "4x11", "--spacing", "1e300"],
+        vec!["detect", s(&p), "--sensor", &long],
+    ] {
+        let (code, _, err) = evcal(&args);
+        assert_ne!(code, Some(0), "{args:?}: {err}");
+        assert!(!err.contains(&"0".repeat(41)), "{args:?}: {err}");
+    }
 }
 
 #[test]

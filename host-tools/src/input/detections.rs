@@ -229,6 +229,13 @@ pub enum ReadDetectionsError {
         /// What is wrong with it.
         message: String,
     },
+    /// A window that lists one centre twice.
+    Repeated {
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with it.
+        message: String,
+    },
 }
 
 impl std::fmt::Display for ReadDetectionsError {
@@ -242,6 +249,10 @@ impl std::fmt::Display for ReadDetectionsError {
             ReadDetectionsError::Order { line, message } => write!(
                 f,
                 "line {line}: {message}; evcal writes windows in order (files joined or edited? sort them by seq, drop repeats)"
+            ),
+            ReadDetectionsError::Repeated { line, message } => write!(
+                f,
+                "line {line}: {message}; the detector lists each circle it finds once (an edited or corrupt file?), and the grid cannot be matched to repeated centres"
             ),
         }
     }
@@ -263,9 +274,26 @@ pub fn read_jsonl(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, Rea
 /// [`read_jsonl`], and the windows must come in order, each with a larger `seq` and a
 /// `t_ref_us` no earlier than the one before, not all at one time: a file in reverse, with
 /// repeated windows or with one time for all (which calibrate worse, silently) is refused,
-/// not sorted, so that whatever made it can be fixed.
+/// not sorted, so that whatever made it can be fixed. A window that lists a centre twice is
+/// refused too (the grid finder would blame the pattern).
 pub fn read_jsonl_in_order(input: impl std::io::BufRead) -> Result<Vec<WindowRecord>, ReadDetectionsError> {
     let windows = parse_jsonl(input)?;
+    for (line, w) in &windows {
+        let mut at: Vec<(u32, u32)> = w.centers.iter().map(|c| (c.u.to_bits(), c.v.to_bits())).collect();
+        at.sort_unstable();
+        if let Some(pair) = at.windows(2).find(|p| p[0] == p[1]) {
+            let times = at.iter().filter(|&&c| c == pair[0]).count();
+            return Err(ReadDetectionsError::Repeated {
+                line: *line,
+                message: format!(
+                    "window {} lists the centre ({}, {}) {times} times",
+                    w.seq,
+                    f32::from_bits(pair[0].0),
+                    f32::from_bits(pair[0].1)
+                ),
+            });
+        }
+    }
     for pair in windows.windows(2) {
         let ((_, prev), (line, r)) = (&pair[0], &pair[1]);
         let order = |message: String| ReadDetectionsError::Order { line: *line, message };
@@ -491,5 +519,19 @@ mod test {
         assert!(matches!(e, ReadDetectionsError::Line { line: 2, .. }), "{e}");
         assert!(e.to_string().starts_with("line 2: not a window record"), "{e}");
         assert_eq!(read_jsonl(&b""[..]).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn a_centre_listed_twice_is_refused() {
+        let c = CenterRecord { u: 10.5, v: 20.25, r: 6.0, spread: 0.3, n: 55, converged: true };
+        let other = CenterRecord { u: 30.0, ..c };
+        let w = |seq, centers| WindowRecord { seq, t_ref_us: 100 * u64::from(seq), events: 4000, noise: 0, centers };
+        let text = format!("{}\n{}\n", w(1, vec![c, other]).to_json_line(), w(2, vec![c, other, c]).to_json_line());
+        let e = read_jsonl_in_order(text.as_bytes()).unwrap_err();
+        assert!(matches!(e, ReadDetectionsError::Repeated { line: 2, .. }), "{e}");
+        assert!(e.to_string().contains("window 2 lists the centre (10.5, 20.25) 2 times"), "{e}");
+        // the same centre in two windows is no repeat
+        let text = format!("{}\n{}\n", w(1, vec![c]).to_json_line(), w(2, vec![c]).to_json_line());
+        assert_eq!(read_jsonl_in_order(text.as_bytes()).unwrap().len(), 2);
     }
 }

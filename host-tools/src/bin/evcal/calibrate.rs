@@ -12,7 +12,7 @@ use evcal_core::event::SensorSize;
 use evcal_host::{
     calib::{Intrinsics, PARAMETER_NAMES},
     input::detections::{self, WindowRecord},
-    input::recording::parse_sensor,
+    input::recording::{parse_sensor, OpenOptions, Recording, STDIN_NAME},
     pipeline::{
         calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Outcome, PipelineError, Setup,
         Views,
@@ -28,7 +28,7 @@ pub use files::{check_outputs, export, list_written, say_stale_removed};
 pub struct CalibrateArgs {
     /// A recording (text `t x y p`, AEDAT4, ROS1 bag, HDF5: the detection core runs over it
     /// first) or detections collected earlier (`.jsonl`, as `evcal detect`, `replay` and
-    /// `collect` write them).
+    /// `collect` write them). `-`: standard input, read as detections if it starts with '{'.
     pub input: PathBuf,
     #[command(flatten)]
     pub read: ReadArgs,
@@ -159,12 +159,19 @@ impl SolveArgs {
     }
 }
 
+/// Standard input, read through a buffer whose first bytes tell detections from a recording.
+type Stdin = std::io::BufReader<std::io::Stdin>;
+
+/// Whether standard input holds detections: its first bytes (peeked, kept for whichever
+/// reader reads it) start with '{', as JSON lines do and no recording does.
+fn stdin_holds_detections(r: &mut Stdin) -> Result<bool> {
+    use std::io::BufRead;
+    let head = r.fill_buf().with_context(|| format!("{STDIN_NAME}: cannot read"))?;
+    Ok(head.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{'))
+}
+
 /// Whether `path` holds detections (JSON lines) rather than events.
 fn is_detections(path: &Path) -> Result<bool> {
-    if path.as_os_str() == "-" {
-        // Standard input cannot be sniffed and then read again by another reader.
-        return Ok(false);
-    }
     let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     if matches!(ext.as_str(), "jsonl" | "ndjson") {
         return Ok(true);
@@ -208,7 +215,11 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
     // The detection options alone (they do not depend on the sensor); the core checks them
     // again with the sensor.
     a.core.config(sensor.unwrap_or(SensorSize::DAVIS346))?;
-    let from_events = !is_detections(&a.input)?;
+    let mut stdin = (a.input.as_os_str() == "-").then(|| std::io::BufReader::with_capacity(1 << 16, std::io::stdin()));
+    let from_events = !match &mut stdin {
+        Some(r) => stdin_holds_detections(r)?,
+        None => is_detections(&a.input)?,
+    };
     let sensor = match sensor {
         Some(s) => Some(s),
         None if from_events => None,
@@ -217,7 +228,7 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
             a.input.display()
         ),
     };
-    let r = calibrate(&a, pattern, from_events, sensor);
+    let r = calibrate(&a, pattern, from_events, sensor, stdin);
     if let Err(e) = &r {
         if !e.chain().any(|c| c.is::<StdoutClosed>()) {
             say_stale_removed(&a.out, a.json.as_deref(), a.quiet);
@@ -228,15 +239,27 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
 
 /// The run after the options' checks.
 ///
-/// `sensor`: given, or for a recording `None` to take from it. The options were checked.
-fn calibrate(a: &CalibrateArgs, pattern: Pattern, from_events: bool, sensor: Option<SensorSize>) -> Result<()> {
+/// `sensor`: given, or for a recording `None` to take from it; `stdin`: standard input when
+/// it is the input, its first bytes peeked. The options were checked.
+fn calibrate(
+    a: &CalibrateArgs,
+    pattern: Pattern,
+    from_events: bool,
+    sensor: Option<SensorSize>,
+    stdin: Option<Stdin>,
+) -> Result<()> {
     let (windows, size) = if let (false, Some(sensor)) = (from_events, sensor) {
-        let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
-        let w = detections::read_jsonl_in_order(std::io::BufReader::new(f))
-            .with_context(|| a.input.display().to_string())?;
+        let w = match stdin {
+            Some(r) => detections::read_jsonl_in_order(r).with_context(|| STDIN_NAME.to_string())?,
+            None => {
+                let f = std::fs::File::open(&a.input).with_context(|| format!("{}: cannot open", a.input.display()))?;
+                detections::read_jsonl_in_order(std::io::BufReader::new(f))
+                    .with_context(|| a.input.display().to_string())?
+            }
+        };
         (w, sensor)
     } else {
-        detect(a, a.core.filled_discs)?
+        detect(a, a.core.filled_discs, stdin)?
     };
     if windows.is_empty() {
         bail!("{}: no detection windows (an empty file)", a.input.display());
@@ -335,7 +358,7 @@ fn with_discs_if_rings_failed(
             "evcal: no calibration from ring fits alone ({why}); detecting again with filled discs where no ring fits (--no-filled-discs not to)"
         );
     }
-    let (discs, _) = detect(a, true)?;
+    let (discs, _) = detect(a, true, None)?;
     let disc_views = find_views(&discs, setup, a.quiet);
     let disc_result = calibrate_views(&disc_views, setup);
     if let Some(no) = disc_fallback_rejects(&disc_result) {
@@ -374,8 +397,28 @@ fn first_clause(why: &str) -> &str {
 
 /// Runs the detection core over the recording, fitting filled discs where no ring fits when
 /// `filled_discs`.
-fn detect(a: &CalibrateArgs, filled_discs: bool) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
-    let rec = a.read.open(&a.input, a.quiet, a.core.sensor.is_none())?;
+/// Standard input, when it is the input, comes as `stdin` (its first bytes already read).
+fn detect(
+    a: &CalibrateArgs,
+    filled_discs: bool,
+    stdin: Option<Stdin>,
+) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
+    let second_pass = a.core.sensor.is_none();
+    let rec = match stdin {
+        None => a.read.open(&a.input, a.quiet, second_pass)?,
+        Some(r) => {
+            let opts = OpenOptions { rewindable: second_pass, ..a.read.options() };
+            let rec = Recording::from_reader(Path::new(STDIN_NAME), Box::new(r), &opts).context(
+                "standard input is read as a recording: detections (JSON lines, as evcal detect writes) start with '{'",
+            )?;
+            if !a.quiet {
+                for n in &rec.notes() {
+                    eprintln!("evcal: note: {n}");
+                }
+            }
+            rec
+        }
+    };
     let (sensor, rec) = resolve_sensor(a.core.sensor.as_deref(), rec, a.quiet)?;
     // The core's options as given, but for the discs (and with them the default window).
     let core = CoreArgs { filled_discs, ..a.core.clone() };

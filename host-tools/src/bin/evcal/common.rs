@@ -326,22 +326,37 @@ pub fn progress_bar(len: u64, quiet: bool, what: &str) -> ProgressBar {
     pb
 }
 
-/// Simulates with a progress bar; all events in memory.
-pub fn run_simulation(cfg: SimConfig, seconds: f64, quiet: bool) -> Result<(Vec<Event>, Simulator)> {
+/// Simulates with a progress bar, handing `sink` the events in order, batch by batch (they are
+/// not kept: memory does not grow with them); the number of events, and the simulator.
+pub fn run_simulation(
+    cfg: SimConfig,
+    seconds: f64,
+    quiet: bool,
+    mut sink: impl FnMut(&[Event]) -> Result<()>,
+) -> Result<(u64, Simulator)> {
     ranges::SIM_SECONDS.check(seconds).map_err(|e| anyhow::anyhow!("--seconds {}: {e}", ranges::number(seconds)))?;
     let mut sim = Simulator::new(cfg);
     let pb = progress_bar((seconds * 1000.0) as u64, quiet, "simulating");
-    let mut events = Vec::new();
+    let (mut n, mut failed) = (0u64, None);
     let mut t = 0.0;
     while t < seconds {
         t = (t + 0.05).min(seconds);
         // In pieces for the progress bar; the same events, in order, as in one go.
-        sim.run_part(t, seconds, |b| events.extend_from_slice(b));
+        sim.run_part(t, seconds, |b| {
+            if failed.is_none() {
+                n += b.len() as u64;
+                failed = sink(b).err();
+            }
+        });
+        if let Some(e) = failed {
+            pb.finish_and_clear();
+            return Err(e);
+        }
         pb.set_position((t * 1000.0) as u64);
-        pb.set_prefix(format!("{} events", events.len()));
+        pb.set_prefix(format!("{n} events"));
     }
     pb.finish_and_clear();
-    Ok((events, sim))
+    Ok((n, sim))
 }
 
 /// Simulates only what the windows of `window` need ([`evcal_host::eval::simulate_windows`]),
@@ -359,11 +374,30 @@ pub fn run_windowed_simulation(
     Ok(out)
 }
 
-/// The truth of every window the detector cuts from `events`.
-pub fn window_truths(events: &[Event], sim: &Simulator, window: WindowConfig) -> Vec<(u32, FrameTruth)> {
-    let mut w: Box<evcal_core::window::Windower<{ detections::HOST_MAX_EVENTS }>> =
-        Box::new(evcal_core::window::Windower::new(window));
-    events.iter().filter_map(|e| w.push(*e)).map(|info| (info.seq, sim.truth_at(info.t_ref_us))).collect()
+/// The windows the detector cuts from events handed batch by batch, as [`run_simulation`]
+/// hands them: each window's sequence number and reference time, for its truth.
+pub struct WindowTimes {
+    windower: Box<evcal_core::window::Windower<{ detections::HOST_MAX_EVENTS }>>,
+    times: Vec<(u32, u64)>,
+}
+
+impl WindowTimes {
+    pub fn new(window: WindowConfig) -> Self {
+        Self { windower: Box::new(evcal_core::window::Windower::new(window)), times: Vec::new() }
+    }
+
+    pub fn push(&mut self, events: &[Event]) {
+        for e in events {
+            if let Some(info) = self.windower.push(*e) {
+                self.times.push((info.seq, info.t_ref_us));
+            }
+        }
+    }
+
+    /// The truth of every window cut.
+    pub fn truths(&self, sim: &Simulator) -> Vec<(u32, FrameTruth)> {
+        self.times.iter().map(|&(seq, t)| (seq, sim.truth_at(t))).collect()
+    }
 }
 
 /// The truth of `windows`, for the recording whose file name is `recording` (so that a later

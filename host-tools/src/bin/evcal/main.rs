@@ -121,7 +121,7 @@ evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
 }
 
 fn main() {
-    let cli = Cli::parse();
+    let cli = Cli::try_parse().unwrap_or_else(|e| exit_quoting_values_short(e));
     common::handle_signals();
     let r = match cli.command {
         Command::Detect(a) => detect::run(a),
@@ -142,4 +142,20 @@ fn main() {
         eprintln!("evcal: error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Longest option value an error quotes back, bytes.
+const QUOTE: usize = 40;
+
+/// Ends with clap's error `e`, any value it quotes cut to [`QUOTE`] bytes: a mistyped
+/// 300-digit number is not worth a screenful.
+fn exit_quoting_values_short(e: clap::Error) -> ! {
+    use clap::error::{ContextKind, ContextValue};
+    let long = match e.get(ContextKind::InvalidValue) {
+        Some(ContextValue::String(v)) if v.len() > QUOTE => v.clone(),
+        _ => e.exit(),
+    };
+    let short = evcal_host::input::recording::quote(long.as_bytes(), QUOTE);
+    eprint!("{}", e.render().to_string().replace(&long, &short));
+    std::process::exit(e.exit_code())
 }

@@ -126,16 +126,30 @@ fn status(r: &ReplayReport) -> String {
     )
 }
 
+/// How many events were read and sent, and why the others were left out.
+fn sent_line(r: &ReplayReport) -> String {
+    let mut line = format!("{} events read, {} sent", r.events_read, r.events_sent);
+    let unused = r.events_skipped.saturating_sub(r.events_out_of_sensor + r.events_time_backwards);
+    let why: Vec<String> = [
+        (r.events_out_of_sensor, "outside the sensor (dropped)"),
+        (r.events_time_backwards, "earlier than the event before (dropped)"),
+        (unused, "in no window (--all-events sends them)"),
+    ]
+    .into_iter()
+    .filter(|(n, _)| *n > 0)
+    .map(|(n, what)| format!("{n} {what}"))
+    .collect();
+    if !why.is_empty() {
+        line += &format!("; left out: {}", why.join(", "));
+    }
+    line
+}
+
 fn summary(r: &ReplayReport) {
     for n in &r.notes {
         eprintln!("evcal: note: {n}");
     }
-    eprintln!(
-        "evcal: {} events read, {} sent (the rest no window holds{})",
-        r.events_read,
-        r.events_sent,
-        if r.events_skipped > 0 { "; --all-events sends them" } else { "" }
-    );
+    eprintln!("evcal: {}", sent_line(r));
     // Per event and per window only when there were some: 38 bytes of configuration over
     // no event is not a rate.
     let per = |bytes: u64, n: u64, what: &str, digits: usize| {
@@ -181,5 +195,30 @@ fn summary(r: &ReplayReport) {
             s.frames_discarded,
             s.pending_events
         );
+    }
+}
+
+#[cfg(test)]
+mod test {
+    use super::*;
+
+    /// Before: every event left out was said to be one "no window holds", events dropped for
+    /// going back in time too.
+    #[test]
+    fn events_left_out_are_said_with_their_reason() {
+        let r = ReplayReport {
+            events_read: 100,
+            events_sent: 90,
+            events_skipped: 10,
+            events_out_of_sensor: 1,
+            events_time_backwards: 7,
+            ..ReplayReport::default()
+        };
+        assert_eq!(
+            sent_line(&r),
+            "100 events read, 90 sent; left out: 1 outside the sensor (dropped), 7 earlier than the event before (dropped), 2 in no window (--all-events sends them)"
+        );
+        let r = ReplayReport { events_read: 5, events_sent: 5, ..ReplayReport::default() };
+        assert_eq!(sent_line(&r), "5 events read, 5 sent");
     }
 }

@@ -1,6 +1,6 @@
 //! `evcal simulate`: a simulated recording and its ground truth.
 
-use crate::common::{check_output, run_simulation, truth_json, window_line, window_truths, write_json, WindowWhy};
+use crate::common::{check_output, run_simulation, truth_json, window_line, write_json, WindowTimes, WindowWhy};
 use crate::ranges;
 use anyhow::{bail, Context, Result};
 use clap::Args;
@@ -8,7 +8,7 @@ use evcal_core::{event::SensorSize, window::WindowConfig};
 use evcal_host::{
     export::atomic::{folder_of, same_file},
     input::detections,
-    input::recording::{write_ecalib_h5, write_text},
+    input::recording::{EcalibH5Writer, TextWriter},
     sim::{Camera, Light, PixelModel, RecordedMotion, SimConfig, Trajectory},
 };
 use std::path::{Path, PathBuf};
@@ -135,6 +135,12 @@ impl PixelArgs {
     }
 }
 
+/// The recording being written.
+enum Out {
+    Text(TextWriter),
+    H5(EcalibH5Writer),
+}
+
 pub fn run(a: SimulateArgs) -> Result<()> {
     let mut cfg = SimConfig::preset(&a.sensor, &a.pattern, a.trajectory, a.light, a.seed)
         .ok_or_else(|| anyhow::anyhow!("unknown sensor or pattern preset"))?;
@@ -164,18 +170,32 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create the folder {}", dir.display()))?;
     }
     let sensor = SensorSize { width: cfg.camera.width, height: cfg.camera.height };
-    let (events, sim) = run_simulation(cfg, a.seconds, a.quiet)?;
-    let is_h5 = a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("h5") || e.eq_ignore_ascii_case("hdf5"));
-    if is_h5 {
-        write_ecalib_h5(&a.out, &events).map_err(anyhow::Error::msg)?;
-    } else {
-        write_text(&a.out, Some(sensor), &events).with_context(|| format!("writing {}", a.out.display()))?;
-    }
     let window = WindowConfig {
         events: a.events_per_window.map_or_else(|| detections::default_events_per_window(sensor), |n| n as usize),
         step_us: (a.step_ms * 1000.0).round() as u64,
     };
-    let truths = window_truths(&events, &sim, window);
+    // Written as they come, and the windows cut as they come: memory does not grow with the
+    // events (a leak of 10 kHz a pixel makes gigabytes of them).
+    let is_h5 = a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("h5") || e.eq_ignore_ascii_case("hdf5"));
+    let writing = || format!("writing {}", a.out.display());
+    let mut out = if is_h5 {
+        Out::H5(EcalibH5Writer::create(&a.out).map_err(anyhow::Error::msg)?)
+    } else {
+        Out::Text(TextWriter::create(&a.out, Some(sensor)).with_context(writing)?)
+    };
+    let mut cuts = WindowTimes::new(window);
+    let (n_events, sim) = run_simulation(cfg, a.seconds, a.quiet, |b| {
+        cuts.push(b);
+        match &mut out {
+            Out::H5(w) => w.write(b).map_err(anyhow::Error::msg),
+            Out::Text(w) => w.write(b).with_context(writing),
+        }
+    })?;
+    match out {
+        Out::H5(w) => w.finish().map_err(anyhow::Error::msg)?,
+        Out::Text(w) => w.finish().with_context(writing)?,
+    }
+    let truths = cuts.truths(&sim);
     write_json(&truth_path, &truth_json(&sim, &truths, &recording_name(&a.out)))?;
     if !a.quiet {
         if let (Some(path), false) = (&a.poses, took.is_empty()) {
@@ -185,7 +205,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         }
         eprintln!(
             "evcal: {} events over {:.2} s ({} windows) -> {}; truth -> {}\nevcal: truth for {}",
-            events.len(),
+            n_events,
             a.seconds,
             truths.len(),
             a.out.display(),

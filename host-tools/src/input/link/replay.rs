@@ -12,7 +12,7 @@
 use super::{refuse, LinkError, Result};
 use super::{Incoming, Link, Progress, Seen, WindowSeq};
 use crate::{
-    input::detections::{WindowRecord, HOST_MAX_EVENTS},
+    input::detections::{WindowRecord, HOST_HELD_EVENTS, HOST_MAX_EVENTS},
     input::recording::ReadError,
 };
 use evcal_core::{
@@ -81,9 +81,14 @@ pub struct ReplayReport {
     pub device: Option<Hello>,
     /// Events read from the recording.
     pub events_read: u64,
-    /// Events left out because no window of the device would hold them (see
-    /// [`WindowedEvents`]).
+    /// Events left out (see [`WindowedEvents`]): outside the sensor, earlier than the event
+    /// before, or in no window of the device.
     pub events_skipped: u64,
+    /// Of those, the events outside the sensor.
+    pub events_out_of_sensor: u64,
+    /// Of those, the events earlier than the one before (the device's input filter would
+    /// drop them).
+    pub events_time_backwards: u64,
     /// Events put into batches and sent.
     pub events_sent: u64,
     /// Batches sent (first transmissions).
@@ -140,6 +145,7 @@ pub fn replay(
     let mut used = WindowedEvents::new(events, config, opts.all_events);
     let streamed = stream(link, &mut used, &hello, opts, stop, &mut report, &mut seq, on);
     (report.events_read, report.events_skipped) = (used.read, used.skipped);
+    (report.events_out_of_sensor, report.events_time_backwards) = (used.out_of_sensor(), used.time_backwards());
     streamed?;
     if let Some(s) = report.stats.filter(|s| s.end_of_stream) {
         let missing = s.windows.saturating_sub(seq.expected());
@@ -471,7 +477,8 @@ fn stream(
 /// was left out.
 pub struct WindowedEvents<I> {
     inner: I,
-    filter: InputFilter,
+    /// The host's hold, as `evcal detect`'s, so that a replay drops the strays `detect` drops.
+    filter: InputFilter<HOST_HELD_EVENTS>,
     windower: Option<Box<Windower<HOST_MAX_EVENTS>>>,
     /// The read error to pass on once the events before it are out.
     error: Option<ReadError>,
@@ -486,6 +493,17 @@ pub struct WindowedEvents<I> {
 }
 
 impl<I> WindowedEvents<I> {
+    /// Of the events left out, those outside the sensor.
+    pub fn out_of_sensor(&self) -> u64 {
+        self.filter.stats().out_of_sensor
+    }
+
+    /// Of the events left out, those dropped for their time: earlier than the one before, or
+    /// a stray far ahead of its neighbours.
+    pub fn time_backwards(&self) -> u64 {
+        self.filter.stats().time_order()
+    }
+
     /// Filters `inner` for the detector `config` (or passes everything if `all`).
     pub fn new(inner: I, config: DetectConfig, all: bool) -> Self {
         let windower = (!all).then(|| Box::new(Windower::new(config.window)));
@@ -619,9 +637,19 @@ mod test {
                 .collect();
             let mut cfg = DetectConfig::new(SensorSize::new(20, 20));
             cfg.window = WindowConfig { events: n, step_us };
-            let used: Vec<Event> =
-                WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, false).map(|e| e.unwrap()).collect();
+            let mut it = WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, false);
+            let used: Vec<Event> = it.by_ref().map(|e| e.unwrap()).collect();
             prop_assert!(used.len() <= events.len());
+            // Each event left out is counted once, under its reason.
+            let mut f = InputFilter::<HOST_HELD_EVENTS>::new(cfg.sensor);
+            for e in &events {
+                let _ = f.push(*e);
+                while f.pop().is_some() {}
+            }
+            f.finish();
+            while f.pop().is_some() {}
+            prop_assert_eq!((it.out_of_sensor(), it.time_backwards()), (f.stats().out_of_sensor, f.stats().time_order()));
+            prop_assert_eq!(it.skipped, events.len() as u64 - used.len() as u64);
             prop_assert_eq!(windows(&used, &cfg), windows(&events, &cfg));
             let all: Vec<Event> =
                 WindowedEvents::new(events.iter().map(|e| Ok(*e)), cfg, true).map(|e| e.unwrap()).collect();

@@ -15,6 +15,7 @@
 //! it read every event the file holds.
 
 use super::{
+    aedat4info::{choose_stream, parse_info},
     codec::{self, Codec},
     flatbuf::{Buf, Table},
     EventSource, Position, ReadError,
@@ -29,9 +30,16 @@ use std::{
 /// The first bytes of every AEDAT4 file.
 pub const MAGIC: &[u8; 14] = b"#!AER-DAT4.0\r\n";
 
-/// Largest decompressed packet or data table accepted: far above what DV writes (packets of
-/// milliseconds of events), low enough that a corrupt size cannot exhaust memory.
-const MAX_DECOMPRESSED: u64 = 512 << 20;
+/// Largest packet accepted, compressed or decompressed: 4 M events, far above what DV and
+/// dv-processing write (a packet per camera transfer, or per part of an `EventStore` as it
+/// was built: milliseconds of events, kB to a few MB); a packet has no declared size, so this
+/// bounds what a corrupt or hostile one (19 kB of Zstandard can expand to 512 MB) makes evcal
+/// hold.
+const MAX_PACKET: u64 = 64 << 20;
+
+/// Largest data table accepted, compressed or decompressed: some 40 bytes a packet, so about
+/// 1.5 M packets, hours of recording.
+const MAX_TABLE: u64 = 64 << 20;
 
 /// Bytes an `EVTS` packet may hold besides its events (its tables and padding: 28 in DV's).
 const MAX_PACKET_SLACK: usize = 128;
@@ -155,8 +163,11 @@ impl Aedat4Reader {
         let table_pos = root.i64(1, -1).ok_or_else(|| bad_header("bad data table position"))?;
         let info = root.bytes(2).flatten().ok_or_else(|| bad_header("no info node (the XML list of streams)"))?;
         let info = std::str::from_utf8(info).map_err(|_| bad_header("the info node is not UTF-8"))?;
-        let streams = parse_info(info).map_err(|m| bad_header(&m))?;
+        let (streams, bad_sizes) = parse_info(info).map_err(|m| bad_header(&m))?;
         let chosen = choose_stream(&streams, stream).map_err(|m| ReadError::new(path, Position::File, m))?;
+        if let Some((_, m)) = bad_sizes.iter().find(|(id, _)| *id == chosen.id) {
+            return Err(bad_header(&format!("event stream {chosen} {m}")));
+        }
 
         let data_start = header_start + header_len;
         let mut notes = Vec::new();
@@ -270,8 +281,13 @@ impl Aedat4Reader {
                 return Err(self.err(at, format!("corrupt packet header: negative size {size}")));
             }
             let size = size as u64;
-            if size > MAX_DECOMPRESSED {
-                return Err(self.err(at, format!("corrupt packet header: a packet of {size} bytes")));
+            if size > MAX_PACKET {
+                return Err(self.err(
+                    at,
+                    format!(
+                        "corrupt packet header: a packet of {size} bytes (evcal reads packets of up to {MAX_PACKET})"
+                    ),
+                ));
             }
             if size > self.end - at - 8 {
                 let what =
@@ -291,7 +307,7 @@ impl Aedat4Reader {
             }
             self.raw.resize(size as usize, 0);
             self.file.read_exact(&mut self.raw).map_err(|e| self.err(at, format!("cannot read packet: {e}")))?;
-            decompress(self.compression, &self.raw, &mut self.packet)
+            decompress(self.compression, &self.raw, MAX_PACKET, &mut self.packet)
                 .map_err(|m| self.err(at, format!("packet of stream {id}: {m}")))?;
             let (start, count) =
                 events_of(&self.packet).map_err(|m| self.err(at, format!("event packet of stream {id}: {m}")))?;
@@ -395,9 +411,9 @@ impl EventSource for Aedat4Reader {
     }
 }
 
-/// Decompresses one packet (or the data table) into `out`.
-fn decompress(c: Compression, raw: &[u8], out: &mut Vec<u8>) -> Result<(), String> {
-    codec::decompress(codec_of(c), raw, MAX_DECOMPRESSED, out)
+/// Decompresses one packet (or the data table) into `out`, at most `limit` bytes.
+fn decompress(c: Compression, raw: &[u8], limit: u64, out: &mut Vec<u8>) -> Result<(), String> {
+    codec::decompress(codec_of(c), raw, limit, out)
 }
 
 fn codec_of(c: Compression) -> Codec {
@@ -435,14 +451,14 @@ fn events_of(packet: &[u8]) -> Result<(usize, usize), String> {
 /// Reads the data table at `pos` and counts the events it lists for stream `id`.
 fn read_table(file: &mut BufReader<File>, pos: u64, file_len: u64, c: Compression, id: i32) -> Result<u64, String> {
     let len = file_len - pos;
-    if len > MAX_DECOMPRESSED {
-        return Err(format!("{len} bytes is more than evcal reads for a table"));
+    if len > MAX_TABLE {
+        return Err(format!("{len} bytes is more than evcal reads for a table ({MAX_TABLE})"));
     }
     file.seek(SeekFrom::Start(pos)).map_err(|e| e.to_string())?;
     let mut raw = vec![0u8; len as usize];
     file.read_exact(&mut raw).map_err(|e| e.to_string())?;
     let mut table = Vec::new();
-    decompress(c, &raw, &mut table)?;
+    decompress(c, &raw, MAX_TABLE, &mut table)?;
     let buf = Buf::size_prefixed(&table).ok_or("bad size prefix")?;
     if buf.identifier() != Some(*b"FTAB") {
         return Err("no 'FTAB' identifier".into());
@@ -467,106 +483,9 @@ fn read_table(file: &mut BufReader<File>, pos: u64, file_len: u64, c: Compressio
     Ok(total)
 }
 
-/// The streams of an info node: `<node name="outInfo">` holds one `<node name="ID">` per
-/// stream with `<attr key="typeIdentifier">`, `<attr key="originalOutputName">` and a child
-/// `<node name="info">` with `sizeX` / `sizeY`.
-fn parse_info(xml: &str) -> Result<Vec<StreamInfo>, String> {
-    let doc = roxmltree::Document::parse(xml).map_err(|e| format!("the info node is not valid XML: {e}"))?;
-    let out_info = doc
-        .descendants()
-        .find(|n| n.has_tag_name("node") && n.attribute("name") == Some("outInfo"))
-        .ok_or("the info node has no 'outInfo' node listing the streams")?;
-    let attr = |node: roxmltree::Node<'_, '_>, key: &str| -> Option<String> {
-        node.children()
-            .find(|c| c.has_tag_name("attr") && c.attribute("key") == Some(key))
-            .map(|c| c.text().unwrap_or("").trim().to_string())
-    };
-    let mut streams = Vec::new();
-    for node in out_info.children().filter(|c| c.has_tag_name("node")) {
-        let Some(id) = node.attribute("name").and_then(|n| n.parse::<i32>().ok()) else { continue };
-        let info = node.children().find(|c| c.has_tag_name("node") && c.attribute("name") == Some("info"));
-        let size = info.and_then(|i| {
-            let w = attr(i, "sizeX")?.parse::<u16>().ok()?;
-            let h = attr(i, "sizeY")?.parse::<u16>().ok()?;
-            (w > 0 && h > 0).then(|| SensorSize::new(w, h))
-        });
-        streams.push(StreamInfo {
-            id,
-            name: attr(node, "originalOutputName").unwrap_or_default(),
-            type_id: attr(node, "typeIdentifier").unwrap_or_default(),
-            size,
-        });
-    }
-    Ok(streams)
-}
-
-/// The event stream to read: `wanted` by name or id, else the only one, else `events`.
-fn choose_stream(streams: &[StreamInfo], wanted: Option<&str>) -> Result<StreamInfo, String> {
-    let list = || streams.iter().map(|s| s.to_string()).collect::<Vec<_>>().join(", ");
-    if let Some(w) = wanted {
-        let s = streams
-            .iter()
-            .find(|s| s.name == w || w.parse::<i32>().is_ok_and(|id| id == s.id))
-            .ok_or_else(|| format!("no stream '{w}' in this AEDAT4 file; its streams: {}", list()))?;
-        if s.type_id != "EVTS" {
-            return Err(format!("stream {s} holds no events (type EVTS); the file's streams: {}", list()));
-        }
-        return Ok(s.clone());
-    }
-    let events: Vec<&StreamInfo> = streams.iter().filter(|s| s.type_id == "EVTS").collect();
-    match events.as_slice() {
-        [one] => Ok((*one).clone()),
-        [] => Err(format!("no event stream (type EVTS) in this AEDAT4 file; its streams: [{}]", list())),
-        many => {
-            let named: Vec<_> = many.iter().filter(|s| s.name == "events").collect();
-            if let [one] = named.as_slice() {
-                Ok((**one).clone())
-            } else {
-                Err(format!(
-                    "several event streams: choose one with --topic NAME or ID; the file's streams: {}",
-                    list()
-                ))
-            }
-        }
-    }
-}
-
 #[cfg(test)]
 mod test {
     use super::*;
-
-    const INFO: &str = r#"<dv version="2.0"><node name="outInfo" path="/outInfo/">
-        <node name="0" path="/outInfo/0/"><attr key="originalOutputName" type="string">events</attr>
-          <attr key="typeIdentifier" type="string">EVTS</attr>
-          <node name="info" path="/outInfo/0/info/"><attr key="sizeX" type="int">346</attr><attr key="sizeY" type="int">260</attr></node></node>
-        <node name="1" path="/outInfo/1/"><attr key="originalOutputName" type="string">frames</attr>
-          <attr key="typeIdentifier" type="string">FRME</attr></node>
-        <node name="2" path="/outInfo/2/"><attr key="originalOutputName" type="string">right</attr>
-          <attr key="typeIdentifier" type="string">EVTS</attr></node>
-        </node></dv>"#;
-
-    #[test]
-    fn info_node_streams_and_choice() {
-        let s = parse_info(INFO).unwrap();
-        assert_eq!(s.len(), 3);
-        assert_eq!(s[0].size, Some(SensorSize::DAVIS346));
-        assert_eq!((s[1].name.as_str(), s[1].type_id.as_str(), s[1].size), ("frames", "FRME", None));
-        assert_eq!(choose_stream(&s, None).unwrap().id, 0, "two event streams: the one named 'events'");
-        assert_eq!(choose_stream(&s, Some("right")).unwrap().id, 2);
-        assert_eq!(choose_stream(&s, Some("2")).unwrap().id, 2);
-        let e = choose_stream(&s, Some("frames")).unwrap_err();
-        assert!(e.contains("holds no events") && e.contains("0 'events' (EVTS)"), "{e}");
-        let e = choose_stream(&s, Some("left")).unwrap_err();
-        assert!(e.contains("no stream 'left'") && e.contains("2 'right' (EVTS)"), "{e}");
-        assert_eq!(choose_stream(&s[1..], None).unwrap().id, 2, "the only event stream, whatever its name");
-        let mut two = s.clone();
-        two[0].name = "left".into();
-        let e = choose_stream(&two, None).unwrap_err();
-        assert!(e.contains("several event streams") && e.contains("--topic"), "{e}");
-        assert!(choose_stream(&s[1..2], None).unwrap_err().contains("no event stream"));
-        assert!(parse_info("<dv><node name='x'/></dv>").unwrap_err().contains("outInfo"));
-        assert!(parse_info("<dv").unwrap_err().contains("XML"));
-    }
 
     #[test]
     fn event_packet_checks() {

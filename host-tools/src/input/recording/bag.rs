@@ -11,7 +11,8 @@
 //! each chunk; the index section at the end repeats the connections and lists each chunk
 //! (op 6: chunk info, with the message count per connection).
 //!
-//! The reader streams chunk by chunk. From the index section it learns the topics before
+//! The reader streams chunk by chunk, each decompressed as its records are read
+//! ([`super::bagrecords`]): memory does not grow with a chunk's size. From the index section it learns the topics before
 //! reading (to pick one, or list them in the error) and how many chunks and messages to
 //! expect: reading fewer is an error, never a silent loss. An unindexed bag is read to its
 //! end, the topic chosen when its connection first appears.
@@ -21,7 +22,8 @@
 //! `u16` y, `u32` secs, `u32` nsecs, `u8` polarity). Times become µs rounded to nearest.
 
 use super::{
-    codec::{self, Codec},
+    bagrecords::{connection, ChunkStream, EventArrayHead, Fields, MAX_HELD},
+    codec::Codec,
     EventSource, Position, ReadError,
 };
 use evcal_core::event::{Event, SensorSize};
@@ -41,15 +43,6 @@ pub const DEFAULT_TOPIC: &str = "/dvs/events";
 
 /// The message type evcal decodes.
 pub const EVENT_ARRAY: &str = "dvs_msgs/EventArray";
-
-/// Largest record header, and largest chunk (compressed or not) accepted: well above what
-/// `rosbag record` writes (768 KiB chunks; one message per chunk when larger), low enough that
-/// a corrupt length cannot exhaust memory.
-const MAX_HEADER: u32 = 1 << 20;
-const MAX_CHUNK: u64 = 1 << 30;
-
-/// Bytes of one `dvs_msgs/Event`.
-const EVENT_BYTES: usize = 13;
 
 const OP_MSG_DATA: u8 = 0x02;
 const OP_BAG_HEADER: u8 = 0x03;
@@ -82,18 +75,18 @@ pub struct BagReader {
     chosen: Option<String>,
     /// Connections seen: id to topic and type.
     conns: HashMap<u32, BagTopic>,
-    chunk: Vec<u8>,
+    /// The data of the top-level record just read, when kept (connections, chunk infos).
     raw: Vec<u8>,
-    /// The chunk being read: its file offset, and the offset of its next record.
+    /// The chunk being read, decompressed as it is read (or the data of a message outside
+    /// chunks), and the file offset of its record.
+    stream: Option<ChunkStream>,
     chunk_at: u64,
-    chunk_next: usize,
     in_chunk: bool,
     /// The message being read: where its record starts in the chunk (or in the file, for a
-    /// message outside chunks), its events' start in `chunk`, their count, the next one.
-    msg_at: (u64, Option<usize>),
-    ev_start: usize,
-    ev_count: usize,
-    ev_next: usize,
+    /// message outside chunks), its event count, the next one.
+    msg_at: (u64, Option<u64>),
+    ev_count: u64,
+    ev_next: u64,
     sensor: Option<SensorSize>,
     notes: Vec<String>,
     chunks_read: u64,
@@ -101,110 +94,11 @@ pub struct BagReader {
     done: bool,
 }
 
-/// A record header's fields.
-#[derive(Debug)]
-struct Fields<'a>(Vec<(&'a [u8], &'a [u8])>);
-
-impl<'a> Fields<'a> {
-    fn parse(mut h: &'a [u8]) -> Result<Self, String> {
-        let mut out = Vec::new();
-        while !h.is_empty() {
-            let len = h.get(..4).ok_or("a header field's length is cut short")?;
-            let len = u32::from_le_bytes([len[0], len[1], len[2], len[3]]) as usize;
-            let f = h.get(4..4usize.saturating_add(len)).ok_or("a header field runs past its header")?;
-            let eq = f.iter().position(|&b| b == b'=').ok_or("a header field has no '='")?;
-            out.push((&f[..eq], &f[eq + 1..]));
-            h = &h[4 + len..];
-        }
-        Ok(Self(out))
-    }
-
-    fn get(&self, name: &str) -> Option<&'a [u8]> {
-        self.0.iter().find(|(n, _)| *n == name.as_bytes()).map(|(_, v)| *v)
-    }
-
-    fn op(&self) -> Result<u8, String> {
-        match self.get("op") {
-            Some([op]) => Ok(*op),
-            Some(_) => Err("the 'op' field is not one byte".into()),
-            None => Err("the record header has no 'op' field".into()),
-        }
-    }
-
-    fn u32(&self, name: &str) -> Result<u32, String> {
-        match self.get(name) {
-            Some(v) if v.len() == 4 => Ok(u32::from_le_bytes([v[0], v[1], v[2], v[3]])),
-            _ => Err(format!("the record header has no 4-byte '{name}' field")),
-        }
-    }
-
-    fn u64(&self, name: &str) -> Result<u64, String> {
-        match self.get(name) {
-            Some(v) if v.len() == 8 => Ok(u64::from_le_bytes(v.try_into().unwrap_or([0; 8]))),
-            _ => Err(format!("the record header has no 8-byte '{name}' field")),
-        }
-    }
-
-    fn string(&self, name: &str) -> Result<String, String> {
-        self.get(name)
-            .map(|v| String::from_utf8_lossy(v).into_owned())
-            .ok_or_else(|| format!("the record header has no '{name}' field"))
-    }
-}
-
-/// A record inside a chunk's data at `at`: where its header and data lie, and where the next
-/// record starts.
-fn chunk_record(b: &[u8], at: usize) -> Result<(std::ops::Range<usize>, std::ops::Range<usize>, usize), String> {
-    let u32_at = |o: usize| -> Result<usize, String> {
-        let v = b.get(o..o.checked_add(4).ok_or("offset overflow")?).ok_or("the record is cut short")?;
-        Ok(u32::from_le_bytes([v[0], v[1], v[2], v[3]]) as usize)
-    };
-    let hlen = u32_at(at)?;
-    let h = at + 4..(at + 4).saturating_add(hlen);
-    if h.end > b.len() {
-        return Err("the record header runs past the chunk".into());
-    }
-    let dlen = u32_at(h.end)?;
-    let d = h.end + 4..(h.end + 4).saturating_add(dlen);
-    if d.end > b.len() {
-        return Err("the record data runs past the chunk".into());
-    }
-    let next = d.end;
-    Ok((h, d, next))
-}
-
-/// The connection record's topic and type (the type is in its data: the connection header).
-fn connection(fields: &Fields<'_>, data: &[u8]) -> Result<(u32, BagTopic), String> {
-    let id = fields.u32("conn")?;
-    let conn_header = Fields::parse(data).map_err(|e| format!("connection {id}: {e}"))?;
-    let topic = fields.string("topic").or_else(|_| conn_header.string("topic"))?;
-    let msg_type = conn_header.string("type").map_err(|e| format!("connection {id}: {e}"))?;
-    Ok((id, BagTopic { topic, msg_type }))
-}
-
-/// Where an EventArray message's events start in `msg`, their count, and the sensor size.
-fn event_array(msg: &[u8]) -> Result<(usize, usize, Option<SensorSize>), String> {
-    let u32_at = |o: usize| -> Result<u32, String> {
-        msg.get(o..o + 4)
-            .map(|v| u32::from_le_bytes([v[0], v[1], v[2], v[3]]))
-            .ok_or_else(|| format!("EventArray cut short at byte {o} of {}", msg.len()))
-    };
-    // std_msgs/Header: seq, stamp (secs, nsecs), frame_id
-    let frame_id_len = u32_at(12)? as usize;
-    let o = 16usize.checked_add(frame_id_len).ok_or("absurd frame_id length")?;
-    let height = u32_at(o)?;
-    let width = u32_at(o + 4)?;
-    let count = u32_at(o + 8)? as usize;
-    let start = o + 12;
-    let need = start as u64 + count as u64 * EVENT_BYTES as u64;
-    if need != msg.len() as u64 {
-        return Err(format!("an EventArray of {count} events takes {need} bytes, the message has {}", msg.len()));
-    }
-    let size = match (u16::try_from(width), u16::try_from(height)) {
-        (Ok(w), Ok(h)) if w > 0 && h > 0 => Some(SensorSize::new(w, h)),
-        _ => None,
-    };
-    Ok((start, count, size))
+/// Reads an EventArray message held whole in `msg` (a test's).
+#[cfg(test)]
+fn event_array(msg: &[u8]) -> Result<EventArrayHead, String> {
+    let n = msg.len() as u64;
+    ChunkStream::new(Codec::None, std::io::Cursor::new(msg.to_vec()), n)?.event_array(n)
 }
 
 impl BagReader {
@@ -238,13 +132,11 @@ impl BagReader {
             wanted: topic.map(str::to_string),
             chosen: None,
             conns: HashMap::new(),
-            chunk: Vec::new(),
             raw: Vec::new(),
+            stream: None,
             chunk_at: 0,
-            chunk_next: 0,
             in_chunk: false,
             msg_at: (0, None),
-            ev_start: 0,
             ev_count: 0,
             ev_next: 0,
             sensor: None,
@@ -337,13 +229,23 @@ impl BagReader {
         ReadError::new(&self.path, Position::Byte(at), m)
     }
 
-    fn err_in_chunk(&self, rec: usize, m: impl std::fmt::Display) -> ReadError {
+    fn err_in_chunk(&self, rec: u64, m: impl std::fmt::Display) -> ReadError {
         self.err(self.chunk_at, format!("in the chunk's uncompressed data at offset {rec}: {m}"))
     }
 
     /// Reads the top-level record at `self.pos` (which must end by `end`): its header, and its
     /// data into `self.raw` if `keep_data`, else skipped. `None` at `end`.
     fn read_record(&mut self, end: u64, keep_data: bool) -> Result<Option<(Vec<u8>, u64)>, ReadError> {
+        let at = self.pos;
+        let Some((header, dlen)) = self.read_record_head(end)? else { return Ok(None) };
+        self.record_data(at, dlen, keep_data)?;
+        Ok(Some((header, dlen)))
+    }
+
+    /// Reads the header of the top-level record at `self.pos` (which must end by `end`), and
+    /// the length of its data; the file is left at the data, `self.pos` past it. `None` at
+    /// `end`.
+    fn read_record_head(&mut self, end: u64) -> Result<Option<(Vec<u8>, u64)>, ReadError> {
         let at = self.pos;
         if at >= end {
             return Ok(None);
@@ -356,8 +258,10 @@ impl BagReader {
         }
         self.file.read_exact(&mut n).map_err(|e| self.err(at, e.to_string()))?;
         let hlen = u32::from_le_bytes(n);
-        if hlen > MAX_HEADER {
-            return Err(self.err(at, format!("corrupt record: a header of {hlen} bytes")));
+        if hlen > MAX_HELD {
+            return Err(
+                self.err(at, format!("corrupt record: a header of {hlen} bytes (evcal reads at most {MAX_HELD})"))
+            );
         }
         if left < 8 + u64::from(hlen) {
             return Err(self.err(at, trunc("header")));
@@ -371,9 +275,19 @@ impl BagReader {
                 self.err(at, format!("truncated: a record's data of {dlen} bytes runs past the end of the file"))
             );
         }
+        self.pos = at + 8 + u64::from(hlen) + dlen;
+        Ok(Some((header, dlen)))
+    }
+
+    /// The data of the record at `at`, `dlen` bytes, at which the file stands: into `self.raw`
+    /// if `keep_data`, else passed over.
+    fn record_data(&mut self, at: u64, dlen: u64, keep_data: bool) -> Result<(), ReadError> {
         if keep_data {
-            if dlen > MAX_CHUNK {
-                return Err(self.err(at, format!("a record of {dlen} bytes is more than evcal reads at once")));
+            if dlen > u64::from(MAX_HELD) {
+                return Err(self.err(
+                    at,
+                    format!("a record of {dlen} bytes outside chunks (evcal holds at most {MAX_HELD}): corrupt"),
+                ));
             }
             self.raw.resize(dlen as usize, 0);
             let mut raw = std::mem::take(&mut self.raw);
@@ -383,8 +297,18 @@ impl BagReader {
         } else {
             self.file.seek_relative(dlen as i64).map_err(|e| self.err(at, e.to_string()))?;
         }
-        self.pos = at + 8 + u64::from(hlen) + dlen;
-        Ok(Some((header, dlen)))
+        Ok(())
+    }
+
+    /// The data of the record at `at`, which ends at `self.pos`, `dlen` bytes compressed by
+    /// `codec` that come to `size`, read from a handle of its own as it is decompressed; the
+    /// file is moved past it.
+    fn data_stream(&mut self, at: u64, dlen: u64, codec: Codec, size: u64) -> Result<ChunkStream, ReadError> {
+        let data_at = self.pos - dlen;
+        let mut f = File::open(&self.path).map_err(|e| self.err(at, e.to_string()))?;
+        f.seek(SeekFrom::Start(data_at)).map_err(|e| self.err(at, e.to_string()))?;
+        self.file.seek_relative(dlen as i64).map_err(|e| self.err(at, e.to_string()))?;
+        ChunkStream::new(codec, BufReader::with_capacity(1 << 16, f).take(dlen), size).map_err(|m| self.err(at, m))
     }
 
     /// Reads the index section: connections, and the message count per connection over all
@@ -448,67 +372,100 @@ impl BagReader {
     fn next_message(&mut self) -> Result<bool, ReadError> {
         loop {
             if self.in_chunk {
-                if self.chunk_next >= self.chunk.len() {
+                // Taken while its record is read (errors borrow `self`), put back unless it ended.
+                let Some(mut stream) = self.stream.take() else {
                     self.in_chunk = false;
                     continue;
-                }
-                let rec = self.chunk_next;
-                let (h, d, next) = chunk_record(&self.chunk, rec).map_err(|m| self.err_in_chunk(rec, m))?;
-                self.chunk_next = next;
-                let f = Fields::parse(&self.chunk[h]).map_err(|m| self.err_in_chunk(rec, m))?;
-                match f.op().map_err(|m| self.err_in_chunk(rec, m))? {
-                    OP_CONNECTION => {
-                        let (id, c) = connection(&f, &self.chunk[d]).map_err(|m| self.err_in_chunk(rec, m))?;
-                        self.add_connection(id, c).map_err(|m| self.err_in_chunk(rec, m))?;
-                    }
-                    OP_MSG_DATA => {
-                        let id = f.u32("conn").map_err(|m| self.err_in_chunk(rec, m))?;
-                        if self.selected(id).map_err(|m| self.err_in_chunk(rec, m))? {
-                            let (start, count, size) =
-                                event_array(&self.chunk[d.clone()]).map_err(|m| self.err_in_chunk(rec, m))?;
-                            self.start_message((self.chunk_at, Some(rec)), d.start + start, count, size);
+                };
+                match self.chunk_record(&mut stream) {
+                    Ok(Some(message)) => {
+                        self.stream = Some(stream);
+                        if message {
                             return Ok(true);
                         }
                     }
-                    op => return Err(self.err_in_chunk(rec, format!("unexpected record (op {op}) inside a chunk"))),
+                    Ok(None) => self.in_chunk = false,
+                    Err(e) => return Err(e),
                 }
                 continue;
             }
             let at = self.pos;
-            let Some((h, dlen)) = self.read_record(self.data_end, true)? else { return self.finish() };
+            let Some((h, dlen)) = self.read_record_head(self.data_end)? else { return self.finish() };
             let f = Fields::parse(&h).map_err(|m| self.err(at, m))?;
             match f.op().map_err(|m| self.err(at, m))? {
                 OP_CHUNK => {
                     let compression = f.string("compression").map_err(|m| self.err(at, m))?;
                     let size = u64::from(f.u32("size").map_err(|m| self.err(at, m))?);
-                    if size > MAX_CHUNK {
-                        return Err(self.err(at, format!("a chunk of {size} bytes is more than evcal reads at once")));
-                    }
-                    decompress(&compression, &self.raw, size, &mut self.chunk)
-                        .map_err(|m| self.err(at, format!("chunk ({compression}, {dlen} bytes): {m}")))?;
+                    let codec = match compression.as_str() {
+                        "none" => Codec::None,
+                        "bz2" => Codec::Bz2,
+                        "lz4" => Codec::Lz4,
+                        other => {
+                            return Err(self.err(
+                                at,
+                                format!(
+                                    "chunk: unknown compression '{}' (known: none, bz2, lz4)",
+                                    super::bytes::quote(other.as_bytes(), 40)
+                                ),
+                            ))
+                        }
+                    };
+                    self.stream = Some(self.data_stream(at, dlen, codec, size)?);
                     self.chunk_at = at;
-                    self.chunk_next = 0;
                     self.in_chunk = true;
                     self.chunks_read += 1;
                 }
                 OP_CONNECTION => {
+                    self.record_data(at, dlen, true)?;
                     let (id, c) = connection(&f, &self.raw).map_err(|m| self.err(at, m))?;
                     self.add_connection(id, c).map_err(|m| self.err(at, m))?;
                 }
                 OP_MSG_DATA => {
                     // Messages outside chunks: not written by rosbag, but valid records.
                     let id = f.u32("conn").map_err(|m| self.err(at, m))?;
-                    if self.selected(id).map_err(|m| self.err(at, m))? {
-                        let (start, count, size) = event_array(&self.raw).map_err(|m| self.err(at, m))?;
-                        std::mem::swap(&mut self.chunk, &mut self.raw);
-                        self.chunk_next = self.chunk.len();
-                        self.start_message((at, None), start, count, size);
-                        return Ok(true);
+                    if !self.selected(id).map_err(|m| self.err(at, m))? {
+                        self.record_data(at, dlen, false)?;
+                        continue;
                     }
+                    let mut stream = self.data_stream(at, dlen, Codec::None, dlen)?;
+                    let head = stream.event_array(dlen).map_err(|m| self.err(at, m))?;
+                    self.stream = Some(stream);
+                    self.start_message((at, None), head).map_err(|m| self.err(at, m))?;
+                    return Ok(true);
                 }
-                OP_INDEX_DATA | OP_CHUNK_INFO | OP_BAG_HEADER => {}
+                OP_INDEX_DATA | OP_CHUNK_INFO | OP_BAG_HEADER => self.record_data(at, dlen, false)?,
                 op => return Err(self.err(at, format!("unknown record type (op {op})"))),
             }
+        }
+    }
+
+    /// Reads the next record of the chunk `stream`: `Some(true)` if it is a message of the
+    /// topic (its events next in the stream), `Some(false)` for another record, `None` at the
+    /// end of the chunk.
+    fn chunk_record(&mut self, stream: &mut ChunkStream) -> Result<Option<bool>, ReadError> {
+        let Some(rec) = stream.next_record().map_err(|m| self.err_in_chunk(stream.position(), m))? else {
+            return Ok(None);
+        };
+        let at = rec.at;
+        let f = Fields::parse(&rec.header).map_err(|m| self.err_in_chunk(at, m))?;
+        match f.op().map_err(|m| self.err_in_chunk(at, m))? {
+            OP_CONNECTION => {
+                let data = stream.held_data(rec.dlen).map_err(|m| self.err_in_chunk(at, m))?;
+                let (id, c) = connection(&f, &data).map_err(|m| self.err_in_chunk(at, m))?;
+                self.add_connection(id, c).map_err(|m| self.err_in_chunk(at, m))?;
+                Ok(Some(false))
+            }
+            OP_MSG_DATA => {
+                let id = f.u32("conn").map_err(|m| self.err_in_chunk(at, m))?;
+                if !self.selected(id).map_err(|m| self.err_in_chunk(at, m))? {
+                    stream.skip(rec.dlen).map_err(|m| self.err_in_chunk(at, m))?;
+                    return Ok(Some(false));
+                }
+                let head = stream.event_array(rec.dlen).map_err(|m| self.err_in_chunk(at, m))?;
+                self.start_message((self.chunk_at, Some(at)), head).map_err(|m| self.err_in_chunk(at, m))?;
+                Ok(Some(true))
+            }
+            op => Err(self.err_in_chunk(at, format!("unexpected record (op {op}) inside a chunk"))),
         }
     }
 
@@ -528,15 +485,16 @@ impl BagReader {
         }
     }
 
-    fn start_message(&mut self, at: (u64, Option<usize>), start: usize, count: usize, size: Option<SensorSize>) {
+    /// Starts reading the events of a message; the first gives the sensor size.
+    fn start_message(&mut self, at: (u64, Option<u64>), head: EventArrayHead) -> Result<(), String> {
+        if self.messages_read == 0 {
+            self.sensor = head.sensor().map_err(|m| format!("the first {EVENT_ARRAY} message {m}"))?;
+        }
         self.msg_at = at;
-        self.ev_start = start;
-        self.ev_count = count;
+        self.ev_count = head.count;
         self.ev_next = 0;
         self.messages_read += 1;
-        if self.sensor.is_none() {
-            self.sensor = size;
-        }
+        Ok(())
     }
 
     /// At the end of the data: checks the counts the index promised.
@@ -578,9 +536,17 @@ impl EventSource for BagReader {
         }
         let i = self.ev_next;
         self.ev_next += 1;
-        let o = self.ev_start + i * EVENT_BYTES;
+        let (at, rec) = self.msg_at;
+        let where_ = rec.map(|r| format!("in the chunk's uncompressed data at offset {r}: ")).unwrap_or_default();
         // `event_array` checked that every event lies inside the message.
-        let b = &self.chunk[o..o + EVENT_BYTES];
+        let b = match self.stream.as_mut().map(ChunkStream::event) {
+            Some(Ok(b)) => b,
+            got => {
+                self.done = true;
+                let m = got.and_then(Result::err).unwrap_or_else(|| "no data".into());
+                return Some(Err(self.err(at, format!("{where_}event {i} of the message: {m}"))));
+            }
+        };
         let x = u16::from_le_bytes([b[0], b[1]]);
         let y = u16::from_le_bytes([b[2], b[3]]);
         let secs = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
@@ -588,8 +554,6 @@ impl EventSource for BagReader {
         let p = b[12];
         if p > 1 {
             self.done = true;
-            let (at, rec) = self.msg_at;
-            let where_ = rec.map(|r| format!("in the chunk's data at offset {r}: ")).unwrap_or_default();
             return Some(Err(self.err(at, format!("{where_}event {i} of the message: polarity byte {p} (0 or 1)"))));
         }
         let t_us = u64::from(secs) * 1_000_000 + (u64::from(nsecs) + 500) / 1000;
@@ -603,22 +567,6 @@ impl EventSource for BagReader {
     fn notes(&self) -> Vec<String> {
         self.notes.clone()
     }
-}
-
-/// Decompresses a chunk's data into `out`, which must come to `size` bytes.
-fn decompress(compression: &str, raw: &[u8], size: u64, out: &mut Vec<u8>) -> Result<(), String> {
-    let codec = match compression {
-        "none" => Codec::None,
-        "bz2" => Codec::Bz2,
-        "lz4" => Codec::Lz4,
-        other => return Err(format!("unknown compression '{other}' (known: none, bz2, lz4)")),
-    };
-    out.reserve(size as usize);
-    codec::decompress(codec, raw, size, out)?;
-    if out.len() as u64 != size {
-        return Err(format!("the chunk header says {size} bytes uncompressed, its data gives {}", out.len()));
-    }
-    Ok(())
 }
 
 /// The topic to read among `topics` (all the bag's): `wanted`, else the only EventArray topic,
@@ -700,27 +648,12 @@ mod test {
         m.extend(346u32.to_le_bytes());
         m.extend(2u32.to_le_bytes());
         m.extend([0u8; 26]);
-        assert_eq!(event_array(&m).unwrap(), (31, 2, Some(SensorSize::DAVIS346)));
+        let head = event_array(&m).unwrap();
+        assert_eq!((head.count, head.sensor()), (2, Ok(Some(SensorSize::DAVIS346))));
         let e = event_array(&m[..m.len() - 1]).unwrap_err();
         assert!(e.contains("2 events takes 57 bytes, the message has 56"), "{e}");
         assert!(event_array(&m[..20]).unwrap_err().contains("cut short"));
         m[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
         assert!(event_array(&m).is_err());
-    }
-
-    #[test]
-    fn header_fields() {
-        let mut h = Vec::new();
-        for f in [&b"op=\x05"[..], b"compression=lz4", b"size=\x10\x00\x00\x00"] {
-            h.extend((f.len() as u32).to_le_bytes());
-            h.extend(f);
-        }
-        let f = Fields::parse(&h).unwrap();
-        assert_eq!(f.op(), Ok(OP_CHUNK));
-        assert_eq!(f.string("compression").unwrap(), "lz4");
-        assert_eq!(f.u32("size"), Ok(16));
-        assert!(f.u64("size").is_err());
-        assert!(Fields::parse(&h[..h.len() - 1]).is_err());
-        assert!(Fields::parse(&[3, 0, 0, 0, b'a', b'b', b'c']).unwrap_err().contains("'='"));
     }
 }

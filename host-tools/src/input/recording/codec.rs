@@ -1,7 +1,8 @@
 //! Decompression of the blocks binary recordings store: LZ4 frames (AEDAT4 packets, ROS bag
-//! chunks), Zstandard (AEDAT4), bzip2 (ROS bag chunks). Each decodes one whole block into a
-//! caller's buffer, refuses to grow past a limit (a corrupt size cannot exhaust memory) and
-//! reports a block cut short as an error.
+//! chunks), Zstandard (AEDAT4), bzip2 (ROS bag chunks). [`decompress`] decodes one whole block
+//! into a caller's buffer, which grows with what the decoder actually gives (never with a size
+//! the file declares) and never past a limit, and reports a block cut short as an error;
+//! [`reader`] decodes a block as it is read, for blocks too large to hold.
 
 use std::io::Read;
 
@@ -46,6 +47,19 @@ pub(crate) fn decompress(codec: Codec, raw: &[u8], limit: u64, out: &mut Vec<u8>
         Ok(_) => Ok(()),
         Err(e) => Err(format!("cannot decompress ({codec:?}): {e}")),
     }
+}
+
+/// A reader of the decompressed bytes of `raw`, decoding as it is read: memory is the
+/// decoder's buffers, whatever the block's size.
+pub(crate) fn reader(codec: Codec, raw: impl Read + 'static) -> Result<Box<dyn Read>, String> {
+    Ok(match codec {
+        Codec::None => Box::new(raw),
+        Codec::Lz4 => Box::new(lz4_flex::frame::FrameDecoder::new(raw)),
+        Codec::Zstd => {
+            Box::new(zstd::stream::read::Decoder::new(raw).map_err(|e| format!("cannot start Zstandard: {e}"))?)
+        }
+        Codec::Bz2 => Box::new(bzip2::read::MultiBzDecoder::new(raw)),
+    })
 }
 
 /// Decompresses the first `n` bytes of `raw` (fewer if it holds fewer) into `out`.
@@ -129,5 +143,29 @@ mod test {
         }
         assert!(decompress(Codec::Zstd, b"not zstd", 1 << 20, &mut out).is_err());
         assert!(decompress(Codec::None, &data, 10, &mut out).is_err());
+    }
+
+    /// A bomb (64 MiB of zeros in a few kB) against a 1 MiB limit: an error naming the limit,
+    /// and the buffer never grew past about twice the limit (it grows with the decoder's
+    /// output, doubling).
+    #[test]
+    fn bombs_stop_at_the_limit() {
+        let mut z = zstd::stream::Encoder::new(Vec::new(), 3).unwrap();
+        let block = vec![0u8; 1 << 20];
+        for _ in 0..64 {
+            std::io::Write::write_all(&mut z, &block).unwrap();
+        }
+        let z = z.finish().unwrap();
+        let mut lz = lz4_flex::frame::FrameEncoder::new(Vec::new());
+        for _ in 0..64 {
+            std::io::Write::write_all(&mut lz, &block).unwrap();
+        }
+        let lz = lz.finish().unwrap();
+        for (codec, raw) in [(Codec::Zstd, z), (Codec::Lz4, lz)] {
+            let mut out = Vec::new();
+            let e = decompress(codec, &raw, 1 << 20, &mut out).unwrap_err();
+            assert!(e.contains("more than 1048576 bytes"), "{codec:?}: {e}");
+            assert!(out.capacity() <= 2 << 20, "{codec:?}: grew to {} bytes", out.capacity());
+        }
     }
 }

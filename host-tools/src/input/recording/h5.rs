@@ -130,26 +130,73 @@ fn row_to_event(x: f64, y: f64, p: f64, t: f64) -> Result<Event, String> {
 /// The HDF5 library writes a temporary file beside `path`, renamed over it at the end
 /// ([`crate::export::atomic`]): a failure leaves `path` as it was.
 pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
-    let staged = crate::export::atomic::AtomicFile::create(path).map_err(|e| e.to_string())?;
-    write_ecalib_h5_at(staged.path(), path, events)?;
-    staged.commit().map_err(|e| e.to_string())
+    let mut w = EcalibH5Writer::create(path)?;
+    w.write(events)?;
+    w.finish()
 }
 
-/// Writes the file of [`write_ecalib_h5`] at `at`, naming `path` in errors; the file is
-/// closed on return.
-fn write_ecalib_h5_at(at: &Path, path: &Path, events: &[Event]) -> Result<(), String> {
-    let file = hdf5::File::create(at).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut data = Vec::with_capacity(events.len() * 4);
-    for e in events {
-        data.extend([f64::from(e.x), f64::from(e.y), f64::from(u8::from(e.polarity)), e.t_us as f64 * 1e-6]);
+/// Rows of `events_data` a writer holds before it writes them (and the dataset's chunk):
+/// 2 MiB, whatever the recording's length.
+const WRITE_ROWS: usize = 1 << 16;
+
+/// Writes events in E-Calib's layout as they come, [`WRITE_ROWS`] at a time, into a dataset
+/// that grows: memory does not grow with the recording.
+pub struct EcalibH5Writer {
+    path: std::path::PathBuf,
+    staged: crate::export::atomic::AtomicFile,
+    file: hdf5::File,
+    data: hdf5::Dataset,
+    rows: usize,
+    held: Vec<f64>,
+}
+
+impl EcalibH5Writer {
+    /// Starts `path` with an empty `events_data`: the HDF5 library writes a temporary file
+    /// beside it, renamed over it by [`EcalibH5Writer::finish`]; dropped before, `path` is left
+    /// as it was.
+    pub fn create(path: &Path) -> Result<Self, String> {
+        let fail = |e: hdf5::Error| format!("{}: cannot write events_data: {e}", path.display());
+        let staged = crate::export::atomic::AtomicFile::create(path).map_err(|e| e.to_string())?;
+        let file = hdf5::File::create(staged.path()).map_err(|e| format!("{}: {e}", path.display()))?;
+        let shape = hdf5::SimpleExtents::from_vec(vec![hdf5::Extent::resizable(0), hdf5::Extent::from(4)]);
+        let data = file.new_dataset::<f64>().shape(shape).chunk((WRITE_ROWS, 4)).create("events_data").map_err(fail)?;
+        Ok(Self { path: path.to_path_buf(), staged, file, data, rows: 0, held: Vec::with_capacity(WRITE_ROWS * 4) })
     }
-    let arr = ndarray::Array2::from_shape_vec((events.len(), 4), data).map_err(|e| e.to_string())?;
-    file.new_dataset_builder()
-        .with_data(&arr)
-        .create("events_data")
-        .map_err(|e| format!("{}: cannot write events_data: {e}", path.display()))?;
-    // Closed here, with its error, not on a drop that would swallow it.
-    file.close().map_err(|e| format!("{}: {e}", path.display()))
+
+    /// Appends `events`.
+    pub fn write(&mut self, events: &[Event]) -> Result<(), String> {
+        for e in events {
+            self.held.extend([f64::from(e.x), f64::from(e.y), f64::from(u8::from(e.polarity)), e.t_us as f64 * 1e-6]);
+            if self.held.len() == WRITE_ROWS * 4 {
+                self.flush()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<(), String> {
+        let n = self.held.len() / 4;
+        if n == 0 {
+            return Ok(());
+        }
+        let fail = |e: String| format!("{}: cannot write events_data: {e}", self.path.display());
+        let arr = ndarray::ArrayView2::from_shape((n, 4), &self.held).map_err(|e| fail(e.to_string()))?;
+        self.data.resize((self.rows + n, 4)).map_err(|e| fail(e.to_string()))?;
+        self.data.write_slice(&arr, ndarray::s![self.rows..self.rows + n, ..]).map_err(|e| fail(e.to_string()))?;
+        self.rows += n;
+        self.held.clear();
+        Ok(())
+    }
+
+    /// Writes what is held, closes the file and puts it in place.
+    pub fn finish(mut self) -> Result<(), String> {
+        self.flush()?;
+        let Self { path, staged, file, data, .. } = self;
+        drop(data);
+        // Closed here, with its error, not on a drop that would swallow it.
+        file.close().map_err(|e| format!("{}: {e}", path.display()))?;
+        staged.commit().map_err(|e| e.to_string())
+    }
 }
 
 #[cfg(test)]

@@ -12,6 +12,7 @@
 //! The sensor size is read from `width`/`height` (or `sensor_width`/`sensor_height`)
 //! attributes of the group or the file when present.
 
+use super::h5attrs::{size_attrs, unit_attr};
 use super::h5chunks::Column;
 use super::{EventSource, Format, Position, ReadError};
 use evcal_core::event::{Event, SensorSize};
@@ -187,7 +188,7 @@ impl H5ColumnsReader {
                 let u = if let Some(u) = unit {
                     u
                 } else if let Some(u) = from_attr {
-                    u
+                    u.map_err(&err)?
                 } else if t_offset.is_some() {
                     TimeUnit::Microseconds
                 } else {
@@ -205,7 +206,12 @@ impl H5ColumnsReader {
             other => return Err(err(format!("'{prefix}t' is not a number ({other:?})"))),
         };
         let file_loc: &hdf5::Location = &file;
-        let sensor = [group.as_deref(), Some(file_loc)].into_iter().flatten().find_map(size_attrs);
+        let sensor = [group.as_deref(), Some(file_loc)]
+            .into_iter()
+            .flatten()
+            .find_map(|loc| size_attrs(loc).transpose())
+            .transpose()
+            .map_err(&err)?;
         Ok(Self {
             path: path.to_path_buf(),
             x: column(&x, "x")?,
@@ -398,29 +404,6 @@ fn filter_name(id: i32) -> &'static str {
         0x8ecf => " (Prophesee ECF)",
         _ => "",
     }
-}
-
-/// A time unit stated by a `unit`, `units` or `time_unit` string attribute of `loc`.
-fn unit_attr(loc: &hdf5::Location) -> Option<TimeUnit> {
-    ["unit", "units", "time_unit"].into_iter().find_map(|n| {
-        let a = loc.attr(n).ok()?;
-        let s = a
-            .read_scalar::<hdf5::types::VarLenUnicode>()
-            .map(|s| s.to_string())
-            .or_else(|_| a.read_scalar::<hdf5::types::VarLenAscii>().map(|s| s.to_string()))
-            .ok()?;
-        TimeUnit::parse(&s)
-    })
-}
-
-/// A sensor size from `width`/`height` (or `sensor_width`/`sensor_height`) attributes.
-fn size_attrs(loc: &hdf5::Location) -> Option<SensorSize> {
-    let int = |n: &str| loc.attr(n).ok()?.read_scalar::<i64>().ok().and_then(|v| u16::try_from(v).ok());
-    let (w, h) = match (int("width"), int("height")) {
-        (Some(w), Some(h)) => (w, h),
-        _ => (int("sensor_width")?, int("sensor_height")?),
-    };
-    (w > 0 && h > 0).then(|| SensorSize::new(w, h))
 }
 
 /// Guesses the unit of integer timestamps from their values (see the module's notes).

@@ -6,12 +6,15 @@
 //! reader then consumes, so a pipe or standard input (`-`) loses nothing.
 
 mod aedat4;
+mod aedat4info;
 mod bag;
+mod bagrecords;
 mod blosc;
 mod bytes;
 mod codec;
 mod flatbuf;
 mod h5;
+mod h5attrs;
 mod h5chunks;
 mod h5cols;
 mod h5file;
@@ -22,9 +25,9 @@ mod text;
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use bytes::{quote, remove_spools, Spool, SPOOL_MAX_BYTES, STDIN_NAME};
-pub use h5::{write_ecalib_h5, H5Reader};
+pub use h5::{write_ecalib_h5, EcalibH5Writer, H5Reader};
 pub use h5cols::{H5ColumnsReader, TimeUnit};
-pub use text::{write_text, TextReader, MAX_LINE};
+pub use text::{write_text, TextReader, TextWriter, MAX_LINE};
 
 use bytes::{Input, TeeHandle};
 use evcal_core::{
@@ -312,6 +315,7 @@ impl Recording {
             };
         }
         let Sniffed::Ready(format) = sniffed else { unreachable!("HDF5 needs a file") };
+        time_unit_applies(format, opts.time_unit).map_err(|m| ReadError::new(&name, Position::File, m))?;
         let origin = match (&input.path, opts.rewindable) {
             (Some(p), _) => Origin::File(p.clone()),
             (None, false) => Origin::Stream(name.clone()),
@@ -358,6 +362,7 @@ impl Recording {
             Sniffed::Ready(f) => f,
         };
         let rename = |e: ReadError| e.renamed(file, name);
+        time_unit_applies(format, opts.time_unit).map_err(|m| ReadError::new(name, Position::File, m))?;
         let (sensor, len, events): (_, _, Box<dyn EventSource>) = match format {
             Format::EcalibH5 => {
                 let r = H5Reader::open(file).map_err(rename)?;
@@ -442,6 +447,45 @@ impl Iterator for Recording {
     }
 }
 
+/// Whether a time unit given by the user (`--time-unit`) can apply to `format`: an error for
+/// a format whose times have a unit of their own that differs (it would be ignored, and the
+/// user believe it was used).
+fn time_unit_applies(format: Format, unit: Option<TimeUnit>) -> Result<(), String> {
+    let Some(unit) = unit else { return Ok(()) };
+    let (own, why) = match format {
+        Format::Text | Format::EventsGroupH5 | Format::RootColumnsH5 => return Ok(()),
+        Format::Aedat4 => (Some(TimeUnit::Microseconds), "AEDAT4 timestamps are µs by the format"),
+        Format::PropheseeRaw(_) | Format::PropheseeDat => {
+            (Some(TimeUnit::Microseconds), "Prophesee timestamps are µs by the format")
+        }
+        Format::EcalibH5 => (Some(TimeUnit::Seconds), "E-Calib's events_data holds seconds by the format"),
+        Format::RosBag => (None, "ROS times are seconds and nanoseconds by the format"),
+    };
+    if own == Some(unit) {
+        return Ok(());
+    }
+    Err(format!(
+        "--time-unit {} does not apply to this file: {why} (--time-unit is for text recordings and HDF5 columns)",
+        unit.name()
+    ))
+}
+
+/// A sensor size as a file states it: `Ok(None)` for 0 by 0 (a writer that did not know it),
+/// else each side must be 1 to 65535 (coordinates are 16-bit); the error says what was
+/// stated, to follow "the header " or the like.
+pub(crate) fn stated_sensor(width: i128, height: i128) -> Result<Option<SensorSize>, String> {
+    if width == 0 && height == 0 {
+        return Ok(None);
+    }
+    match (u16::try_from(width), u16::try_from(height)) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok(Some(SensorSize::new(w, h))),
+        _ => Err(format!(
+            "states a sensor size of {width}x{height}; evcal reads sizes of 1 to {} pixels a side",
+            u16::MAX
+        )),
+    }
+}
+
 /// Parses a sensor size: `WxH` (e.g. `346x260`) or a preset name (`davis346`, `dvxplorer`,
 /// `imx636` or `evk4` for 1280x720, `genx320` for 320x320).
 pub fn parse_sensor(s: &str) -> Result<SensorSize, String> {
@@ -452,13 +496,14 @@ pub fn parse_sensor(s: &str) -> Result<SensorSize, String> {
         "genx320" => return Ok(SensorSize::new(320, 320)),
         _ => {}
     }
+    let q = quote(s.as_bytes(), 40);
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(|| {
-        format!("'{s}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320")
+        format!("'{q}' is not a sensor size: use WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320")
     })?;
-    let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{s}'"))?;
-    let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{s}'"))?;
+    let w: u16 = w.trim().parse().map_err(|_| format!("bad sensor width in '{q}' (1 to 65535)"))?;
+    let h: u16 = h.trim().parse().map_err(|_| format!("bad sensor height in '{q}' (1 to 65535)"))?;
     if w == 0 || h == 0 {
-        return Err(format!("sensor size '{s}' must be at least 1x1"));
+        return Err(format!("sensor size '{q}' must be at least 1x1"));
     }
     Ok(SensorSize::new(w, h))
 }

@@ -353,22 +353,41 @@ fn to_us(s: &str, unit: TimeUnit) -> Option<u64> {
 /// `width height` header line when `sensor` is given; through a temporary file renamed over
 /// `path` ([`crate::export::atomic`]), so that a failure leaves `path` as it was.
 pub fn write_text(path: &Path, sensor: Option<SensorSize>, events: &[Event]) -> std::io::Result<()> {
-    let f = crate::export::atomic::AtomicFile::create(path).map_err(std::io::Error::other)?;
-    let mut w = BufWriter::with_capacity(1 << 16, f);
-    write_text_to(&mut w, sensor, events)?;
-    let f = w.into_inner().map_err(|e| e.into_error())?;
-    f.commit().map_err(std::io::Error::other)
+    let mut w = TextWriter::create(path, sensor)?;
+    w.write(events)?;
+    w.finish()
 }
 
-/// Writes events as [`write_text`] does, to `w`.
-pub fn write_text_to(w: &mut impl Write, sensor: Option<SensorSize>, events: &[Event]) -> std::io::Result<()> {
-    if let Some(s) = sensor {
-        writeln!(w, "{} {}", s.width, s.height)?;
+/// Writes a text recording as [`write_text`] does, the events as they come.
+pub struct TextWriter(BufWriter<crate::export::atomic::AtomicFile>);
+
+impl TextWriter {
+    /// Starts `path` (replacing it at [`TextWriter::finish`], through a temporary file beside
+    /// it) and writes the `width height` header if `sensor` is given.
+    pub fn create(path: &Path, sensor: Option<SensorSize>) -> std::io::Result<Self> {
+        let f = crate::export::atomic::AtomicFile::create(path).map_err(std::io::Error::other)?;
+        let mut w = BufWriter::with_capacity(1 << 16, f);
+        if let Some(s) = sensor {
+            writeln!(w, "{} {}", s.width, s.height)?;
+        }
+        Ok(Self(w))
     }
-    for e in events {
-        writeln!(w, "{}.{:06} {} {} {}", e.t_us / 1_000_000, e.t_us % 1_000_000, e.x, e.y, u8::from(e.polarity))?;
+
+    /// Appends `events`.
+    pub fn write(&mut self, events: &[Event]) -> std::io::Result<()> {
+        for e in events {
+            let (s, us) = (e.t_us / 1_000_000, e.t_us % 1_000_000);
+            writeln!(self.0, "{s}.{us:06} {} {} {}", e.x, e.y, u8::from(e.polarity))?;
+        }
+        Ok(())
     }
-    w.flush()
+
+    /// Writes what is buffered and puts the file in place; dropped before, the file is left
+    /// as it was.
+    pub fn finish(self) -> std::io::Result<()> {
+        let f = self.0.into_inner().map_err(|e| e.into_error())?;
+        f.commit().map_err(std::io::Error::other)
+    }
 }
 
 #[cfg(test)]

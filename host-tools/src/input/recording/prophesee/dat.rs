@@ -108,7 +108,7 @@ impl DatReader {
             }
         }
         let records = input.len.map(|l| l.saturating_sub(data_at) / RECORD as u64);
-        let sensor = header.sensor().map(|(s, _)| s);
+        let sensor = header.sensor().map_err(|m| ReadError::new(&path, Position::File, m))?.map(|(s, _)| s);
         let mut file = input.into_reader();
         file.skip_head(data_at as usize);
         Ok(Self {

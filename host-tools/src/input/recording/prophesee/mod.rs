@@ -22,7 +22,7 @@ pub mod write;
 pub use dat::DatReader;
 pub use raw::RawReader;
 
-use super::{Format, Position, ReadError};
+use super::{bytes::quote, stated_sensor, Format, Position, ReadError};
 use evcal_core::{
     event::SensorSize,
     evt::{Encoding, Evt21Order},
@@ -105,28 +105,41 @@ impl Header {
         }
     }
 
-    /// The sensor size and where it came from (`None` for a size the header states).
-    pub fn sensor(&self) -> Option<(SensorSize, Option<String>)> {
-        let num = |s: &str| s.trim().parse::<u16>().ok().filter(|&v| v > 0);
+    /// The sensor size and where it came from (`None` for a size the header states); an
+    /// error for a size stated that evcal cannot use (not whole numbers, outside 1 to 65535),
+    /// saying what is stated.
+    pub fn sensor(&self) -> Result<Option<(SensorSize, Option<String>)>, String> {
+        let stated = |w: &str, h: &str, line: &str| -> Result<Option<SensorSize>, String> {
+            match (w.trim().parse::<i128>(), h.trim().parse::<i128>()) {
+                (Ok(w), Ok(h)) => stated_sensor(w, h).map_err(|m| format!("the header ({line}) {m}")),
+                _ => Err(format!(
+                    "the header ({line}) states a sensor size of \"{}\" by \"{}\", not whole numbers",
+                    quote(w.trim().as_bytes(), 40),
+                    quote(h.trim().as_bytes(), 40)
+                )),
+            }
+        };
         if let (Some(w), Some(h)) = (self.format_option("width"), self.format_option("height")) {
-            if let (Some(w), Some(h)) = (num(w), num(h)) {
-                return Some((SensorSize::new(w, h), None));
+            if let Some(s) = stated(w, h, "% format ...;width=W;height=H")? {
+                return Ok(Some((s, None)));
             }
         }
-        if let Some((w, h)) = self.get("geometry").and_then(|g| g.split_once(['x', 'X'])) {
-            if let (Some(w), Some(h)) = (num(w), num(h)) {
-                return Some((SensorSize::new(w, h), None));
+        if let Some(g) = self.get("geometry") {
+            let (w, h) = g.split_once(['x', 'X']).unwrap_or((g, ""));
+            if let Some(s) = stated(w, h, "% geometry WxH")? {
+                return Ok(Some((s, None)));
             }
         }
-        if let (Some(w), Some(h)) = (self.get("Width").and_then(num), self.get("Height").and_then(num)) {
-            return Some((SensorSize::new(w, h), None));
+        if let (Some(w), Some(h)) = (self.get("Width"), self.get("Height")) {
+            if let Some(s) = stated(w, h, "% Width, % Height")? {
+                return Ok(Some((s, None)));
+            }
         }
-        let (key, value) =
-            [("plugin_name", self.get("plugin_name")), ("sensor_generation", self.get("sensor_generation"))]
-                .into_iter()
-                .find_map(|(k, v)| v.map(|v| (k, v)))?;
-        let size = camera_sensor(value)?;
-        Some((size, Some(format!("{key} {value}"))))
+        let found = [("plugin_name", self.get("plugin_name")), ("sensor_generation", self.get("sensor_generation"))]
+            .into_iter()
+            .find_map(|(k, v)| v.map(|v| (k, v)));
+        let Some((key, value)) = found else { return Ok(None) };
+        Ok(camera_sensor(value).map(|size| (size, Some(format!("{key} {value}")))))
     }
 }
 
@@ -167,17 +180,41 @@ pub fn sniff_evt21_order(body: &[u8]) -> Option<Evt21Order> {
 
 /// Peeks at `input` until its `%` header has ended (with some bytes of data after it, for
 /// [`sniff_evt21_order`]), the input has ended, or [`MAX_HEADER`] bytes: a live stream is not
-/// held up for a megabyte, a short file costs its size.
+/// held up for a megabyte, a short file costs its size. A header that goes on past
+/// [`MAX_HEADER`] is an error: its remaining lines would be read as events.
 pub(crate) fn peek_header(input: &mut crate::input::recording::bytes::Input) -> Result<(), ReadError> {
     let mut want = 1 << 16;
     loop {
         let got = input.peek(want)?.len();
         let header = Header::parse(&input.head).len as usize;
-        if got < want || header + (1 << 16) <= got || want >= MAX_HEADER {
+        if got < want || header + (1 << 16) <= got {
             return Ok(());
         }
-        want = (want * 4).min(MAX_HEADER);
+        if want > MAX_HEADER {
+            break;
+        }
+        // One byte past the limit: whether the input goes on after it.
+        want = (want * 4).min(MAX_HEADER + 1);
     }
+    let within = &input.head[..MAX_HEADER];
+    let h = Header::parse(within);
+    let rest = &within[h.len as usize..];
+    // The header's last line, without its newline: `% end` closes it.
+    let last = within[..h.len as usize].strip_suffix(b"\n").unwrap_or_default();
+    let last = last.rsplit(|&b| b == b'\n').next().unwrap_or_default();
+    let closed = std::str::from_utf8(last).is_ok_and(|l| l.strip_prefix('%').is_some_and(|l| l.trim() == "end"));
+    let cut_line = rest.first() == Some(&b'%') && !rest.contains(&b'\n');
+    if !h.fields.is_empty() && !closed && (rest.is_empty() || cut_line) {
+        return Err(ReadError::new(
+            &input.name,
+            Position::Byte(h.len),
+            format!(
+                "the '%' header goes on past {MAX_HEADER} bytes, the most evcal reads of a Prophesee header \
+                 (its remaining lines would be read as events): the file is corrupt, or not a Prophesee file"
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// Recognises a Prophesee file by its header (`head`: its first bytes, up to
@@ -225,7 +262,7 @@ mod test {
         assert_eq!(h.len, 27 + 10 + 36 + 6, "the header ends after its `% end` line");
         assert_eq!(h.get("EVT"), Some("3.0"));
         assert_eq!(h.encoding(), Ok(Some((Encoding::Evt3, true))));
-        assert_eq!(h.sensor(), Some((SensorSize::new(1280, 720), None)));
+        assert_eq!(h.sensor(), Ok(Some((SensorSize::new(1280, 720), None))));
         // binary data that starts with '%' is not a header line
         let h = Header::parse(b"% evt 2.0\n%\x00\x80\x11\n");
         assert_eq!(h.len, 10);
@@ -259,15 +296,24 @@ mod test {
 
     #[test]
     fn sensor_sizes() {
-        let s = |t: &str| Header::parse(t.as_bytes()).sensor();
+        let s = |t: &str| Header::parse(t.as_bytes()).sensor().unwrap();
         assert_eq!(s("% geometry 1280x720\n"), Some((SensorSize::new(1280, 720), None)));
         assert_eq!(s("% Height 480\n% Width 640\n"), Some((SensorSize::new(640, 480), None)));
+        assert_eq!(s("% geometry 0x0\n% Height 480\n% Width 640\n"), Some((SensorSize::new(640, 480), None)));
         let (size, from) = s("% plugin_name hal_plugin_gen3_fx3\n% system_ID 21\n").unwrap();
         assert_eq!(size, SensorSize::new(640, 480));
         assert_eq!(from.as_deref(), Some("plugin_name hal_plugin_gen3_fx3"));
         assert_eq!(s("% plugin_name hal_plugin_imx636_evk4\n").unwrap().0, SensorSize::new(1280, 720));
         assert_eq!(s("% sensor_generation 320\n").unwrap().0, SensorSize::new(320, 320));
         assert_eq!(s("% plugin_name mystery\n"), None);
-        assert_eq!(s("% geometry 0x720\n"), None);
+        // Stated sizes evcal cannot use: said, with the value and the range, not taken as
+        // "no size".
+        let e = |t: &str| Header::parse(t.as_bytes()).sensor().unwrap_err();
+        let m = e("% geometry 0x720\n");
+        assert!(m.contains("% geometry") && m.contains("0x720; evcal reads sizes of 1 to 65535"), "{m}");
+        let m = e("% format EVT3;height=720;width=70000\n");
+        assert!(m.contains("70000x720; evcal reads sizes of 1 to 65535"), "{m}");
+        let m = e("% Width 640.5\n% Height 480\n");
+        assert!(m.contains("\"640.5\" by \"480\", not whole numbers"), "{m}");
     }
 }

@@ -46,11 +46,11 @@ impl RawReader {
     pub(crate) fn from_input(mut input: Input, encoding: Encoding) -> Result<Self, ReadError> {
         super::peek_header(&mut input)?;
         let header = Header::parse(&input.head);
-        let (sensor, sensor_from) = match header.sensor() {
+        let path = input.name.clone();
+        let (sensor, sensor_from) = match header.sensor().map_err(|m| ReadError::new(&path, Position::File, m))? {
             Some((s, from)) => (Some(s), from),
             None => (None, None),
         };
-        let path = input.name.clone();
         let mut file = input.into_reader();
         file.skip_head(header.len as usize);
         Ok(Self {
