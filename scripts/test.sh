@@ -56,8 +56,9 @@ EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspa
   | tee -a target/test-output.txt
 
 step "fuzz every decoder, the detection pipeline and every host reader (bounded: ${EVCAL_FUZZ_SECONDS:-8} s per target)"
-# 13 targets (7 of the core, 6 host readers, which build the host library too): installing
-# cargo-fuzz ~65 s, building the targets, then 8 s each (104 s); kept under ~6 minutes.
+# 14 targets (8 of the core: decoders, wire, detector, time filter; 6 host readers, which
+# build the host library too): installing cargo-fuzz ~65 s, building the targets, then 8 s
+# each (112 s); kept under ~6 minutes.
 # Longer runs: bash scripts/fuzz.sh 600
 cargo fmt --manifest-path fuzz/Cargo.toml -- --check
 # read_h5 runs too since HDF5 is built from source (2.2): the bugs of the system's HDF5 1.10
