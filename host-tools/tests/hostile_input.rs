@@ -203,10 +203,10 @@ fn bag_bomb(path: &Path, declared: u32, zeros: u64) {
     std::fs::write(path, b).unwrap();
 }
 
-/// dv-processing's Zstandard AEDAT4 file, its packets replaced by one packet of its event
-/// stream that decompresses to `zeros` zero bytes (a few kB in the file), and no data table.
-fn aedat4_bomb(path: &Path, zeros: u64) {
-    let mut b = std::fs::read(fixture("dv_zstd.aedat4")).unwrap();
+/// The committed AEDAT4 fixture `name` (dv-processing's) up to its first packet, its data
+/// table position set to none (-1): packets appended to it are read to the end of the file.
+fn aedat4_header(name: &str) -> Vec<u8> {
+    let mut b = std::fs::read(fixture(name)).unwrap();
     let header_end = 18 + u32::from_le_bytes(b[14..18].try_into().unwrap()) as usize;
     // the data table's position: the only i64 in the header that points into the file's tail
     let table = (header_end as u64..b.len() as u64)
@@ -216,12 +216,49 @@ fn aedat4_bomb(path: &Path, zeros: u64) {
         + 18;
     b[table..table + 8].copy_from_slice(&(-1i64).to_le_bytes());
     b.truncate(header_end);
+    b
+}
+
+/// dv-processing's Zstandard AEDAT4 file, its packets replaced by one packet of its event
+/// stream that decompresses to `zeros` zero bytes (a few kB in the file), and no data table.
+fn aedat4_bomb(path: &Path, zeros: u64) {
+    let mut b = aedat4_header("dv_zstd.aedat4");
     let mut z = zstd::stream::Encoder::new(Vec::new(), 3).unwrap();
     write_zeros(&mut z, zeros);
     let z = z.finish().unwrap();
     b.extend(0i32.to_le_bytes()); // the event stream, id 0
     b.extend((z.len() as i32).to_le_bytes());
     b.extend(z);
+    std::fs::write(path, b).unwrap();
+}
+
+/// An AEDAT4 file of `events` on a 346x260 sensor: the header of dv-processing's uncompressed
+/// fixture (streams 0 events, 1 IMU, 2 triggers), no data table, and uncompressed `EVTS`
+/// packets of up to 2500 events on stream 0, laid out as dv-processing lays them.
+fn aedat4_of_events(path: &Path, events: &[Event]) {
+    let mut b = aedat4_header("dv_none.aedat4");
+    for packet in events.chunks(2500) {
+        // A size-prefixed FlatBuffer: the root table's offset, 'EVTS', padding, the vtable
+        // (6 bytes; a table of 8; field 0 at 4), the table (its vtable 6 back; the events
+        // vector 4 on), the vector's length and its 16-byte structs.
+        let mut fb = Vec::new();
+        fb.extend(16u32.to_le_bytes());
+        fb.extend(b"EVTS");
+        fb.extend([0, 0, 6, 0, 8, 0, 4, 0]);
+        fb.extend(6i32.to_le_bytes());
+        fb.extend(4u32.to_le_bytes());
+        fb.extend((packet.len() as u32).to_le_bytes());
+        for e in packet {
+            fb.extend((e.t_us as i64).to_le_bytes());
+            fb.extend((e.x as i16).to_le_bytes());
+            fb.extend((e.y as i16).to_le_bytes());
+            fb.extend([u8::from(e.polarity), 0, 0, 0]);
+        }
+        b.extend(0i32.to_le_bytes()); // the event stream, id 0
+        b.extend((fb.len() as i32 + 4).to_le_bytes());
+        b.extend((fb.len() as u32).to_le_bytes());
+        b.extend(fb);
+    }
     std::fs::write(path, b).unwrap();
 }
 
@@ -432,24 +469,29 @@ fn dat_files_are_checked() {
     );
 }
 
-/// A ROS bag, unindexed, of one uncompressed chunk: the connection of `/dvs/events` and one
-/// EventArray message stating `width` x `height`.
-fn bag_of_one_message(path: &Path, width: u32, height: u32) {
+/// A ROS bag, unindexed, of one uncompressed chunk: the connection of `/dvs/events` and an
+/// EventArray message stating `width` x `height` for each of `messages`.
+fn bag_of_messages(path: &Path, width: u32, height: u32, messages: &[&[Event]]) {
     let conn_header = [bag_record(&[("topic", b"/dvs/events"), ("type", b"dvs_msgs/EventArray")], &[])].concat();
     // the connection header is the record's data: fields without the record's lengths
     let conn_data = conn_header[4..conn_header.len() - 4].to_vec();
-    let mut msg = Vec::new();
-    msg.extend([0u8; 12]); // seq, stamp
-    msg.extend(0u32.to_le_bytes()); // frame_id
-    msg.extend(height.to_le_bytes());
-    msg.extend(width.to_le_bytes());
-    msg.extend(1u32.to_le_bytes());
-    msg.extend([5, 0, 6, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1]);
-    let chunk = [
-        bag_record(&[("op", &[7]), ("conn", &[0; 4]), ("topic", b"/dvs/events")], &conn_data),
-        bag_record(&[("op", &[2]), ("conn", &[0; 4]), ("time", &[0; 8])], &msg),
-    ]
-    .concat();
+    let mut chunk = bag_record(&[("op", &[7]), ("conn", &[0; 4]), ("topic", b"/dvs/events")], &conn_data);
+    for events in messages {
+        let mut msg = Vec::new();
+        msg.extend([0u8; 12]); // seq, stamp
+        msg.extend(0u32.to_le_bytes()); // frame_id
+        msg.extend(height.to_le_bytes());
+        msg.extend(width.to_le_bytes());
+        msg.extend((events.len() as u32).to_le_bytes());
+        for e in *events {
+            msg.extend(e.x.to_le_bytes());
+            msg.extend(e.y.to_le_bytes());
+            msg.extend(((e.t_us / 1_000_000) as u32).to_le_bytes());
+            msg.extend(((e.t_us % 1_000_000 * 1000) as u32).to_le_bytes());
+            msg.push(u8::from(e.polarity));
+        }
+        chunk.extend(bag_record(&[("op", &[2]), ("conn", &[0; 4]), ("time", &[0; 8])], &msg));
+    }
     let mut b = b"#ROSBAG V2.0\n".to_vec();
     b.extend(bag_record(
         &[
@@ -465,6 +507,11 @@ fn bag_of_one_message(path: &Path, width: u32, height: u32) {
         &chunk,
     ));
     std::fs::write(path, b).unwrap();
+}
+
+/// [`bag_of_messages`] of one message of one event.
+fn bag_of_one_message(path: &Path, width: u32, height: u32) {
+    bag_of_messages(path, width, height, &[&[Event { t_us: 1_000_000, x: 5, y: 6, polarity: true }]]);
 }
 
 /// Root-column HDF5 (x, y, t, p) with attributes on the file.
