@@ -1,19 +1,5 @@
 //! The input filter: pixel on the sensor, time in order, and one stray time not allowed to
-//! poison what follows it.
-//!
-//! Keeping the last accepted time as a high-water mark drops an event earlier than it; but
-//! then one event whose time jumps far ahead (a corrupt word, a USB reset, a stray EVT 2.0
-//! `TIME_HIGH`) would make every later event "back in time". So an event more than
-//! [`MAX_STEP_US`] ahead of the last accepted one is *held*, with the events after it, until
-//! they say which time is real: if [`confirm`](InputFilter::CONFIRM) of them go on from the
-//! held event's time (at or after it), it was a real pause and everything held is released
-//! in order; if as many go on from before it, it was a stray and is dropped
-//! ([`InputStats::time_jumps`]). The first event of a stream is held the same way, as
-//! nothing vouches for it (the events after it then go on from before it only if they are
-//! more than [`MAX_STEP_US`] earlier). When the hold fills first (or the input ends, see
-//! [`finish`](InputFilter::finish)) the majority decides, a tie for the held time: a burst of
-//! more than half the hold's events at a stray time is taken as real, and the events after
-//! it are then dropped as back in time (counted, so a caller can say so).
+//! poison what follows it (how: [`InputFilter`]).
 
 use super::{Event, SensorSize};
 
@@ -58,8 +44,22 @@ impl InputStats {
 }
 
 /// Validates events before they reach the windower: pixel on the sensor, time not going
-/// backwards, a stray time held and dropped (see the [module docs](self)). Bad events are
-/// counted and dropped; nothing panics or allocates.
+/// backwards, a stray time held and dropped. Bad events are counted and dropped; nothing
+/// panics or allocates.
+///
+/// Keeping the last accepted time as a high-water mark drops an event earlier than it; but
+/// then one event whose time jumps far ahead (a corrupt word, a USB reset, a stray EVT 2.0
+/// `TIME_HIGH`) would make every later event "back in time". So an event more than
+/// [`MAX_STEP_US`] ahead of the last accepted one is *held*, with the events after it, until
+/// they say which time is real: if [`confirm`](InputFilter::CONFIRM) of them go on from the
+/// held event's time (at or after it), it was a real pause and everything held is released
+/// in order; if as many go on from before it, it was a stray and is dropped
+/// ([`InputStats::time_jumps`]). The first event of a stream is held the same way, as
+/// nothing vouches for it (the events after it then go on from before it only if they are
+/// more than [`MAX_STEP_US`] earlier). When the hold fills first (or the input ends, see
+/// [`finish`](InputFilter::finish)) the majority decides, a tie for the held time: a burst of
+/// more than half the hold's events at a stray time is taken as real, and the events after
+/// it are then dropped as back in time (counted, so a caller can say so).
 ///
 /// Feed it with [`push`](Self::push), which returns the event at once in the usual case,
 /// then take what it releases from its hold with [`pop`](Self::pop) until `None`; at the end

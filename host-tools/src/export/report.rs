@@ -75,7 +75,7 @@ pub fn write_report(
 
 /// The PNG bytes [`write_report`] writes to `path` (named in errors). Drawn into memory, so
 /// that a failure leaves no half-drawn file. The PNG names evcal as its `Software`
-/// ([`PNG_SOFTWARE`]).
+/// (`PNG_SOFTWARE`).
 pub fn render_report(
     path: &Path,
     cal: &Calibration,

@@ -118,7 +118,7 @@ impl Input {
     }
 }
 
-/// The most bytes of a stream copied to a temporary file ([`Input::spool`]): 4 GiB. A
+/// The most bytes of a stream copied to a temporary file (`Input::spool`): 4 GiB. A
 /// temporary folder is often in memory (tmpfs, half the RAM); a file larger than this is
 /// read from its path, where it is already on disk.
 pub const SPOOL_MAX_BYTES: u64 = 4 << 30;

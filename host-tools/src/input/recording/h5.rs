@@ -139,7 +139,7 @@ pub fn write_ecalib_h5(path: &Path, events: &[Event]) -> Result<(), String> {
 /// 2 MiB, whatever the recording's length.
 const WRITE_ROWS: usize = 1 << 16;
 
-/// Writes events in E-Calib's layout as they come, [`WRITE_ROWS`] at a time, into a dataset
+/// Writes events in E-Calib's layout as they come, `WRITE_ROWS` (65 536) rows at a time, into a dataset
 /// that grows: memory does not grow with the recording.
 pub struct EcalibH5Writer {
     path: std::path::PathBuf,
