@@ -124,7 +124,26 @@ impl<const H: usize> InputFilter<H> {
     /// the sensor, within [`MAX_STEP_US`] after the last accepted event); otherwise it is
     /// dropped or held. Call [`pop`](Self::pop) until `None` after every push: the events it
     /// releases come before any later one.
+    #[inline]
     pub fn push(&mut self, e: Event) -> Option<Event> {
+        // The usual case inline, the rest out of line: it runs for every event on the device
+        // (docs/firmware.md#performance).
+        if let (0, Some(last)) = (self.len, self.last_t) {
+            if self.sensor.contains(e.x, e.y) && e.t_us >= last && e.t_us - last <= MAX_STEP_US {
+                self.finishing = false;
+                self.last_t = Some(e.t_us);
+                self.stats.accepted += 1;
+                return Some(e);
+            }
+        }
+        self.push_held(e)
+    }
+
+    /// [`push`](Self::push) for all but the usual case: off the sensor, back in time, far
+    /// ahead, or something held.
+    #[cold]
+    #[inline(never)]
+    fn push_held(&mut self, e: Event) -> Option<Event> {
         if !self.sensor.contains(e.x, e.y) {
             self.stats.out_of_sensor += 1;
             return None;
