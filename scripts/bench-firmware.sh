@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# The firmware benchmark (not a test): cost of 4000-event windows on the Cortex-M4F under
-# QEMU. Simulates a DAVIS346 recording (4x11 grid, cone, good light; 3.5 s, about 100
-# windows at the paper's 33 ms), replays it into the firmware from a bulk file, checks every
-# window against the host's core bit for bit, and prints instructions per window (exact,
-# between the firmware's bench_start/bench_stop markers, counted by a QEMU plugin), per stage
-# (SysTick under -icount shift=0), the time they imply at 168 MHz, and flash/RAM.
-#   bash scripts/bench-firmware.sh [--seconds S] [--step-ms MS] [--light good|low] [--cpi X] [--mhz F]
+# The firmware benchmark (not a test): cost of the host's windows on a board's core under
+# QEMU. Simulates a recording of the sensor (4x11 grid, cone; 3.5 s, about 100 windows at
+# the paper's 33 ms), replays it into the firmware from a bulk file, checks every window
+# against the host's core bit for bit, and prints instructions per window (exact, between
+# the firmware's bench_start/bench_stop markers, counted by a QEMU plugin), per stage
+# (SysTick under -icount shift=0), the time they imply at the board's clock, and flash/RAM;
+# it ends with one `bench-summary:` line a script can read (tests/examples/bench_firmware.rs).
+#   bash scripts/bench-firmware.sh [--board m4f] [--sensor davis346|genx320|dvxplorer|imx636]
+#        [--light good|low] [--seconds S] [--step-ms MS] [--events N] [--cpi X] [--mhz F] [--profile N]
 # Takes about a minute (mostly the simulation); output also goes to target/bench-firmware/report.txt.
 set -euo pipefail
 cd "$(dirname "$0")/.."

@@ -17,8 +17,12 @@ pub const DEFAULT_EPS: f32 = 0.015;
 /// background: [`crate::cluster::min_pts_above_background`]).
 pub const DEFAULT_MIN_PTS: u16 = 10;
 
-/// Default capacity of a window: the most events one window may hold.
-pub const MAX_EVENTS_PER_WINDOW: usize = 4000;
+/// Default capacity of a window: the most events one window may hold. The window a
+/// DAVIS346 needs ([`window::ring_events_per_window`](crate::window::ring_events_per_window),
+/// twice the paper's), which a Cortex-M4F device holds (an STM32F405's 128 KiB of SRAM,
+/// the stack in its 64 KiB of CCM); larger sensors' windows need a board that holds more
+/// (a `Detector`'s `N`).
+pub const MAX_EVENTS_PER_WINDOW: usize = 8000;
 
 /// Default capacity for clusters (and so centres) per window; clusters beyond it are counted
 /// as dropped.

@@ -10,12 +10,15 @@ use crate::{
         background_per_neighbourhood, min_pts_above_background, ClusterConfig, ClusterRange, ClusterStats, Clusterer,
         ColumnTables, TABLE_CELLS,
     },
-    config::{FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS},
+    config::{
+        DEFAULT_EPS, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS, DEFAULT_STEP_US,
+        FIT_SCRATCH_EVENTS, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW, MAX_RECRUITS,
+    },
     event::{Event, InputFilter, InputStats, SensorSize, MAX_HELD_EVENTS},
-    fit::{fit_in, fit_with, Centre, Extent, FitConfig},
+    fit::{fit_in, fit_with, Centre, Extent, FitConfig, FitMethod},
     math::sqrt_approx,
     moments::{Circle, Moments},
-    window::{WindowConfig, WindowEvent, WindowInfo, Windower},
+    window::{disc_events_per_window, ring_events_per_window, WindowConfig, WindowEvent, WindowInfo, Windower},
 };
 
 /// Everything the detector needs to know.
@@ -33,9 +36,38 @@ pub struct DetectConfig {
 }
 
 impl DetectConfig {
-    /// The paper's defaults for a sensor of the given size.
+    /// The paper's defaults for a sensor of the given size (its 4000 events per window).
     pub fn new(sensor: SensorSize) -> Self {
         Self { sensor, window: WindowConfig::default(), cluster: ClusterConfig::default(), fit: FitConfig::default() }
+    }
+
+    /// evcal's defaults for a sensor: the paper's settings in windows sized to the sensor
+    /// ([`ring_events_per_window`]). What `evcal detect` runs and what a device boots with,
+    /// so that the two give the same detections of the same events. A `const fn`, so that a
+    /// device's detector can be a `static` set up at compile time, with no temporary of its
+    /// size on a small stack.
+    pub const fn for_sensor(sensor: SensorSize) -> Self {
+        Self {
+            sensor,
+            window: WindowConfig { events: ring_events_per_window(sensor), step_us: DEFAULT_STEP_US },
+            cluster: ClusterConfig { eps: DEFAULT_EPS, min_pts: DEFAULT_MIN_PTS, eps_t: None },
+            fit: FitConfig {
+                method: FitMethod::Erwls,
+                max_iterations: DEFAULT_MAX_ITERATIONS,
+                min_events: DEFAULT_MIN_CLUSTER_EVENTS,
+                filled_discs: false,
+            },
+        }
+    }
+
+    /// [`for_sensor`](Self::for_sensor) fitting filled discs where no ring fits, in windows
+    /// of [`disc_events_per_window`]: what the host detects again with when the rings give
+    /// no calibration, and what it asks a device to switch to.
+    pub const fn discs_for_sensor(sensor: SensorSize) -> Self {
+        let mut cfg = Self::for_sensor(sensor);
+        cfg.fit.filled_discs = true;
+        cfg.window.events = disc_events_per_window(sensor);
+        cfg
     }
 }
 
@@ -745,6 +777,18 @@ mod test {
     use super::*;
     use proptest::prelude::*;
     use std::vec::Vec;
+
+    #[test]
+    fn sensor_defaults_are_the_papers_in_windows_sized_to_the_sensor() {
+        for s in [SensorSize::DAVIS346, SensorSize::DVXPLORER, SensorSize::new(320, 320), SensorSize::new(1280, 720)] {
+            let mut paper = DetectConfig::new(s);
+            paper.window.events = ring_events_per_window(s);
+            assert_eq!(DetectConfig::for_sensor(s), paper);
+            paper.window.events = disc_events_per_window(s);
+            paper.fit.filled_discs = true;
+            assert_eq!(DetectConfig::discs_for_sensor(s), paper);
+        }
+    }
 
     /// Events on rings (two crescents each, moving) plus scattered noise.
     fn scene(circles: &[(f32, f32, f32)], per_circle: usize, noise: usize, seed: u32) -> Vec<Event> {

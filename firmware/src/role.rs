@@ -6,7 +6,7 @@ use crate::board;
 use evcal_core::{
     detect::DetectConfig,
     event::SensorSize,
-    wire::{default_config, Device, DeviceOptions},
+    wire::{Device, DeviceOptions},
 };
 #[cfg(not(feature = "board-stm32f405"))]
 use evcal_firmware::runner::FwDetector;
@@ -14,7 +14,7 @@ use static_cell::StaticCell;
 
 /// The configuration the device boots with, until a host sends its own: the core's
 /// defaults for a DAVIS346.
-const BOOT_CONFIG: DetectConfig = default_config(SensorSize::DAVIS346);
+const BOOT_CONFIG: DetectConfig = DetectConfig::for_sensor(SensorSize::DAVIS346);
 
 /// How the device behaves on the link: credit for two frames (one being fed, one waiting in
 /// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
@@ -23,8 +23,8 @@ const OPTIONS: DeviceOptions = DeviceOptions { window: 2, stats_every: 16, clock
 /// The protocol's device with the core's default capacities and buffers.
 pub type FwDevice = Device;
 
-/// What the big static memory holds: one detector's worth (some 43 KB of window buffer and
-/// clusterer), used by whichever mode runs.
+/// What the big static memory holds: one detector's worth (some 100 KB of window buffer,
+/// clusterer and scratch for the host's 8000-event windows), used by whichever mode runs.
 #[allow(clippy::large_enum_variant)] // the variants share one memory on purpose
 enum Role {
     Protocol(FwDevice),

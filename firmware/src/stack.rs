@@ -7,10 +7,13 @@ use core::ptr::{addr_of, read_volatile};
 use cortex_m_rt::STACK_PAINT_VALUE;
 
 extern "C" {
-    // cortex-m-rt's linker script: the stack runs from `_stack_start` (top of RAM) down to
-    // `_stack_end` (the end of the statics); both are what the reset handler paints between.
+    // The board's memory map: the stack runs from `_stack_start` (the top of the CCM) down to
+    // `_stack_end` (its bottom); both are what the reset handler paints between. cortex-m-rt's
+    // linker script: the statics run from `_ram_start` to `__sheap`.
     static _stack_start: u32;
     static _stack_end: u32;
+    static _ram_start: u32;
+    static __sheap: u32;
 }
 
 fn bounds() -> (usize, usize) {
@@ -30,8 +33,9 @@ pub fn high_water() -> usize {
     top - a
 }
 
-/// Bytes of RAM the statics take (data, bss, uninit): from the start of RAM to the stack.
+/// Bytes of RAM the statics take (data, bss, uninit): from the start of RAM to the end of
+/// the last of them.
 pub fn statics() -> usize {
-    const RAM_ORIGIN: usize = 0x2000_0000;
-    bounds().0 - RAM_ORIGIN
+    // Only the symbols' addresses are taken.
+    addr_of!(__sheap) as usize - addr_of!(_ram_start) as usize
 }

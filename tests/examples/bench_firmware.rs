@@ -1,22 +1,27 @@
-//! The firmware benchmark: cost of 4000-event windows on the Cortex-M4F, measured under QEMU.
+//! The firmware benchmark: cost of the host's windows on a board's core, measured under QEMU.
 //!
 //! Run it through `scripts/bench-firmware.sh` (which builds the firmware and the instruction
-//! counting plugin). It simulates a recording, replays it into the firmware from a bulk
-//! file, checks that every window equals the host-side run of the core bit for bit, and
-//! reports instructions per window (exact, between the benchmark markers), per stage (SysTick
-//! under `-icount shift=0`), the implied time at the chosen clock and CPI, and the
-//! firmware's memory.
+//! counting plugin). It simulates a recording of the sensor, replays it into the firmware
+//! from a bulk file, checks that every window equals the host-side run of the core bit for
+//! bit, and reports instructions per window (exact, between the benchmark markers), per stage
+//! (SysTick under `-icount shift=0`), the implied time at the board's clock and CPI, and the
+//! firmware's memory. It ends with one line a script can read:
 //!
-//! Options: `--seconds S` (3.5), `--step-ms MS` (33.333), `--events N` (4000),
-//! `--light good|low`, `--plugin LIB` (no exact counts without it), `--cpi X` (1.25),
-//! `--mhz F` (168), `--dir DIR` (target/bench-firmware), `--profile N` (also list the N
-//! functions that execute the most instructions inside the windows; slower).
+//! `bench-summary: board=B sensor=S light=L events_per_window=N windows=W identical=I
+//! mean_instr=X max_instr=Y budget_instr=Z static_ram=R stack_peak=K flash=F`
+//!
+//! Options: `--board m4f` (the boards built: see [`Board`]), `--sensor davis346|genx320|
+//! dvxplorer|imx636` (davis346), `--light good|low`, `--seconds S` (3.5), `--step-ms MS`
+//! (33.333), `--events N` (the host's default window for the sensor), `--plugin LIB` (no
+//! exact counts without it), `--cpi X` and `--mhz F` (the board's), `--dir DIR`
+//! (target/bench-firmware), `--profile N` (also list the N functions that execute the most
+//! instructions inside the windows; slower).
 
 use anyhow::{bail, ensure, Context, Result};
-use evcal_core::{detect::DetectConfig, event::SensorSize};
+use evcal_core::{detect::DetectConfig, event::SensorSize, window::ring_events_per_window};
 use evcal_host::{
     eval::simulate,
-    sim::{Light, SimConfig, Trajectory},
+    sim::{Camera, Light, SimConfig, Trajectory},
 };
 use evcal_tests::{
     firmware::{self, BenchRun, Counter},
@@ -28,7 +33,36 @@ use std::path::PathBuf;
 /// `-icount shift=0` (1 ns per instruction, 25 MHz system clock).
 const INSNS_PER_TICK: f64 = 40.0;
 
+/// A board the firmware is built for, as the benchmark sees it.
+struct Board {
+    /// Its name on the command line and in the summary.
+    name: &'static str,
+    /// What QEMU emulates and what real part it stands for.
+    title: &'static str,
+    /// Core clock of the real part, MHz, and its cycles per instruction as the docs state
+    /// them (docs/firmware.md, "Performance").
+    mhz: f64,
+    cpi: f64,
+    /// Most instructions a window may take: 33.3 ms at the clock and CPI, rounded down as
+    /// CI holds it.
+    budget: u64,
+    /// Most events a window holds on it (the firmware's capacity for the board).
+    capacity: usize,
+}
+
+/// The boards built. The Cortex-M4F: QEMU's mps2-an386 standing for an STM32F405.
+const BOARDS: [Board; 1] = [Board {
+    name: "m4f",
+    title: "QEMU mps2-an386, Cortex-M4F, standing for an STM32F405 at 168 MHz",
+    mhz: 168.0,
+    cpi: 1.25,
+    budget: firmware::M4F_INSTRUCTIONS_PER_WINDOW,
+    capacity: evcal_core::config::MAX_EVENTS_PER_WINDOW,
+}];
+
 struct Opts {
+    board: &'static Board,
+    sensor: &'static str,
     seconds: f64,
     step_ms: f64,
     events: usize,
@@ -42,13 +76,15 @@ struct Opts {
 
 fn opts() -> Result<Opts> {
     let mut o = Opts {
+        board: &BOARDS[0],
+        sensor: "davis346",
         seconds: 3.5,
         step_ms: 33.333,
-        events: 4000,
+        events: 0,
         light: Light::Good,
         plugin: None,
-        cpi: 1.25,
-        mhz: 168.0,
+        cpi: 0.0,
+        mhz: 0.0,
         dir: firmware::target_dir().join("bench-firmware"),
         profile: 0,
     };
@@ -56,6 +92,19 @@ fn opts() -> Result<Opts> {
     while let Some(a) = args.next() {
         let mut v = || args.next().with_context(|| format!("{a} needs a value"));
         match a.as_str() {
+            "--board" => {
+                let name = v()?;
+                let names: Vec<&str> = BOARDS.iter().map(|b| b.name).collect();
+                o.board = BOARDS.iter().find(|b| b.name == name).with_context(|| {
+                    format!("--board: {name} is not a board built; the boards: {}", names.join(", "))
+                })?;
+            }
+            "--sensor" => {
+                let name = v()?;
+                o.sensor = Camera::PRESETS.iter().copied().find(|p| *p == name).with_context(|| {
+                    format!("--sensor: {name} is no simulator preset; the presets: {}", Camera::PRESETS.join(", "))
+                })?;
+            }
             "--seconds" => o.seconds = v()?.parse()?,
             "--step-ms" => o.step_ms = v()?.parse()?,
             "--events" => o.events = v()?.parse()?,
@@ -73,6 +122,12 @@ fn opts() -> Result<Opts> {
             "--profile" => o.profile = v()?.parse()?,
             _ => bail!("unknown option {a} (see the doc comment of tests/examples/bench_firmware.rs)"),
         }
+    }
+    if o.mhz == 0.0 {
+        o.mhz = o.board.mhz;
+    }
+    if o.cpi == 0.0 {
+        o.cpi = o.board.cpi;
     }
     Ok(o)
 }
@@ -105,9 +160,22 @@ fn main() -> Result<()> {
     std::fs::create_dir_all(&o.dir)?;
     let elf = firmware::build_firmware()?;
 
-    let sim_cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, o.light, 11).context("preset")?;
+    let sim_cfg = SimConfig::preset(o.sensor, "4x11", Trajectory::Cone, o.light, 11).context("preset")?;
     let sensor = SensorSize { width: sim_cfg.camera.width, height: sim_cfg.camera.height };
-    eprintln!("bench: simulating {} s of DAVIS346, 4x11 grid, cone, {} light", o.seconds, o.light.name());
+    let mut o = o;
+    if o.events == 0 {
+        o.events = ring_events_per_window(sensor);
+    }
+    ensure!(
+        o.events <= o.board.capacity,
+        "the {} board holds {} events per window; {} needs {} (the host's window for it): a board that holds it is \
+         needed",
+        o.board.name,
+        o.board.capacity,
+        o.sensor,
+        o.events
+    );
+    eprintln!("bench: simulating {} s of {}, 4x11 grid, cone, {} light", o.seconds, o.sensor, o.light.name());
     let (events, _) = simulate(sim_cfg, o.seconds);
     let bulk = o.dir.join("events.bin");
     firmware::write_bulk(&bulk, sensor, &events)?;
@@ -125,22 +193,27 @@ fn main() -> Result<()> {
 
     // The figures mean nothing unless the device computed what the host computes.
     ensure!(run.windows.len() == want.len(), "{} windows on the device, {} on the host", run.windows.len(), want.len());
-    for (d, h) in run.windows.iter().zip(&want) {
-        ensure!(d.without_times() == *h, "window {} differs between device and host", h.seq);
+    let identical = run.windows.iter().zip(&want).filter(|(d, h)| d.without_times() == **h).count();
+    if let Some((_, h)) = run.windows.iter().zip(&want).find(|(d, h)| d.without_times() != **h) {
+        eprintln!("bench: window {} differs between device and host (the summary counts them)", h.seq);
     }
     let full: Vec<usize> = (0..run.windows.len()).filter(|&i| run.windows[i].counts[0] as usize == o.events).collect();
 
     let elf_size = size(&elf)?;
-    println!("# evcal firmware benchmark (QEMU mps2-an386, Cortex-M4F, -icount shift=0)");
+    println!("# evcal firmware benchmark ({}, -icount shift=0)", o.board.title);
     println!(
-        "recording: simulated DAVIS346 4x11 cone, {} light, {:.1} s, {} events; windows of {} events every {} ms: {} windows ({} full), all identical to the host's core bit for bit",
+        "recording: simulated {} {}x{} 4x11 cone, {} light, {:.1} s, {} events; windows of {} events every {} ms: {} windows ({} full), {} identical to the host's core bit for bit",
+        o.sensor,
+        sensor.width,
+        sensor.height,
         o.light.name(),
         o.seconds,
         events.len(),
         o.events,
         o.step_ms,
         want.len(),
-        full.len()
+        full.len(),
+        identical
     );
     let centres: usize = run.windows.iter().map(|w| w.centres.len()).sum();
     println!("centres per window: {:.1} mean", centres as f64 / run.windows.len().max(1) as f64);
@@ -182,8 +255,13 @@ fn main() -> Result<()> {
             to_ms(s.max)
         );
         // The budget CI holds every window to (tests/tests/firmware_qemu.rs).
-        let budget = firmware::M4F_INSTRUCTIONS_PER_WINDOW as f64;
-        println!("targets: <= {} instructions per window, aim <= 1.6 M", m(budget));
+        let budget = o.board.budget as f64;
+        println!(
+            "targets: <= {} instructions per window (<= {:.0} per event), aim <= 400 per event ({})",
+            m(budget),
+            budget / o.events as f64,
+            m(400.0 * o.events as f64)
+        );
         if let Some(total) = run.total_instructions {
             let inside: u64 = run.instructions.iter().sum();
             let fed = run.num("events")?;
@@ -216,7 +294,7 @@ fn main() -> Result<()> {
         elf_size.bss,
         run.num("stack_peak")?
     );
-    println!("budget: flash 512 KiB, RAM 128 KiB (linker-enforced), static RAM target <= 64 KiB");
+    println!("budget: flash 512 KiB, SRAM 128 KiB for the statics, CCM 64 KiB for the stack (linker-enforced)");
     println!("qemu wall time: {qemu_s:.1} s for {events_fed} events");
     if o.profile > 0 {
         let all: u64 = run.profile.iter().map(|(_, n)| n).sum();
@@ -229,6 +307,29 @@ fn main() -> Result<()> {
             );
         }
     }
+    let counted: Vec<u64> = full.iter().filter_map(|&i| run.instructions.get(i).copied()).collect();
+    let mean = counted.iter().sum::<u64>() / (counted.len() as u64).max(1);
+    println!(
+        "bench-summary: board={} sensor={} light={} events_per_window={} windows={} identical={} mean_instr={} max_instr={} budget_instr={} static_ram={} stack_peak={} flash={}",
+        o.board.name,
+        o.sensor,
+        o.light.name(),
+        o.events,
+        run.windows.len(),
+        identical,
+        mean,
+        counted.iter().max().copied().unwrap_or(0),
+        o.board.budget,
+        elf_size.ram(),
+        run.num("stack_peak")?,
+        elf_size.flash()
+    );
+    ensure!(
+        identical == run.windows.len(),
+        "{} of {} windows differ from the host's",
+        run.windows.len() - identical,
+        run.windows.len()
+    );
     Ok(())
 }
 

@@ -85,7 +85,8 @@ fn bulk_replay_equals_the_host_core_bit_for_bit() {
     assert_eq!((run.num("out_of_sensor").unwrap(), run.num("time_backwards").unwrap()), (0, 0));
     let (ram, stack) = (run.num("static_ram").unwrap(), run.num("stack_peak").unwrap());
     eprintln!("RAM: static {ram} B, stack peak {stack} B");
-    assert!(ram + stack < 128 * 1024, "RAM budget");
+    // The statics in the SRAM, the stack in the CCM (firmware/boards/*.x).
+    assert!(ram <= 128 * 1024 && stack < 64 * 1024, "RAM budget: static {ram} B, stack {stack} B");
     let lines: String = run.windows.iter().map(|w| w.without_times().line()).collect();
     golden::assert_pinned("BENCH_LINES", "the firmware's bench lines", lines.as_bytes(), golden::BENCH_LINES);
 }
@@ -272,15 +273,20 @@ fn damaged_frames_cost_only_themselves_and_are_reported() {
     assert_eq!(st.windows as usize, want.len());
 }
 
-/// The protocol with the emulator's bulk source: the host configures a session over the UART,
-/// the events come from a file (windows every 10 ms, so the windower also skips the events
-/// between windows, as at the paper's 33 ms), the detection frames come back over the UART,
-/// byte for byte the host's.
+/// The protocol with the emulator's bulk source, in the host's own windows: the device boots
+/// with the configuration `evcal detect` runs on its sensor (8000 events a window on a
+/// DAVIS346), the host configures a session with it over the UART, the events come from a
+/// file (windows every 10 ms, so the windower also skips the events between windows, as at
+/// the paper's 33 ms), the detection frames come back over the UART, byte for byte the
+/// host's.
 #[test]
 #[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
 fn bulk_source_through_the_protocol_equals_the_host_core() {
     let elf = elf();
-    let (events, cfg) = recording(9, 1.1, 10_000);
+    let (events, paper) = recording(9, 1.4, 10_000);
+    let mut cfg = evcal_host::input::detections::host_config(paper.sensor);
+    cfg.window.step_us = paper.window.step_us;
+    assert_eq!(cfg.window.events, 8000, "the host's window on a DAVIS346");
     let want = link::expected_frames(&events, cfg).unwrap();
     assert!(want.len() >= 100, "{} windows", want.len());
     let bulk = scratch("protocol-replay.bin");
@@ -296,6 +302,10 @@ fn bulk_source_through_the_protocol_equals_the_host_core() {
         got.detections.len(),
         t.elapsed().as_secs_f64()
     );
+    let boot = got.hellos.first().expect("the device's boot Hello");
+    let host = evcal_host::input::detections::host_config(cfg.sensor);
+    assert_eq!(boot.config, host, "the device boots with what `evcal detect` runs");
+    assert!(boot.max_events as usize >= host.window.events, "the device holds the host's window: {boot:?}");
     assert_eq!(got.detections.len(), want.len(), "windows received");
     for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
         assert_eq!(s, ws);

@@ -271,28 +271,28 @@ fn bytes_per_window_and_per_event() {
 }
 
 /// The host's default window for a DVXplorer (15 000 events) is more than the firmware holds:
-/// a replay asking for it as a wish gets the device's 4000-event windows, exactly the lines
-/// `evcal detect --events-per-window 4000` prints, and a note; asking for it as a demand (the
+/// a replay asking for it as a wish gets the device's 8000-event windows, exactly the lines
+/// `evcal detect --events-per-window 8000` prints, and a note; asking for it as a demand (the
 /// user's `--events-per-window`) is an error that says what the device holds.
 #[test]
 fn a_default_window_beyond_the_device_is_cut_to_what_it_holds() {
     let (events, _) = recording(0.4, Light::Good, 3);
     let asked = detections::host_config(SensorSize::DVXPLORER);
     assert_eq!(asked.window.events, 15_000);
-    let held = DetectConfig { window: evcal_core::window::WindowConfig { events: 4000, ..asked.window }, ..asked };
+    let held = DetectConfig { window: evcal_core::window::WindowConfig { events: 8000, ..asked.window }, ..asked };
     let expected = detect_lines(&events, held);
     let opts = ReplayOptions { window_up_to_device: true, ..quick() };
     let (got, report) = replay_lines(&events, asked, opts, |w| w, |w| w);
     let got: Vec<String> = got.iter().map(WindowRecord::to_json_line).collect();
     assert!(expected.len() >= 10, "{} windows", expected.len());
     assert_eq!(got, expected);
-    assert_eq!(report.device.map(|h| h.config.window.events), Some(4000));
-    assert!(report.notes.iter().any(|n| n.contains("at most 4000 events per window")), "{:?}", report.notes);
+    assert_eq!(report.device.map(|h| h.config.window.events), Some(8000));
+    assert!(report.notes.iter().any(|n| n.contains("at most 8000 events per window")), "{:?}", report.notes);
 
     let (mut link, device): (Link, _) = virtual_device::loopback(asked, virtual_device::options(), |w| w, |w| w);
     let e = replay(&mut link, events.iter().map(|e| Ok(*e)), asked, &quick(), &AtomicBool::new(false), &mut |_| {})
         .unwrap_err();
     drop(link);
     device.join();
-    assert!(e.to_string().contains("holds at most 4000 events per window; 15000 were asked"), "{e}");
+    assert!(e.to_string().contains("holds at most 8000 events per window; 15000 were asked"), "{e}");
 }

@@ -41,19 +41,19 @@
 //!
 //! # Memory
 //!
-//! `Device` is large: 62,776 bytes on the Cortex-M4F with the default capacities (the
+//! `Device` is large: 102,776 bytes on the Cortex-M4F with the default capacities (the
 //! detector's window buffer, clusterer and scratch, its input filter's hold of
 //! [`MAX_HELD_EVENTS`](crate::event::MAX_HELD_EVENTS) events, 600 bytes, plus `RX + TX`). Give it a `static` home, and build it at
-//! compile time ([`Device::new`] and [`default_config`] are `const fn`), so that no temporary
+//! compile time ([`Device::new`] and [`DetectConfig::for_sensor`] are `const fn`), so that no temporary
 //! copy ever lands on the stack: with `static_cell`, as the firmware does, the image is
 //! written into the static's memory in place:
 //!
 //! ```
-//! use evcal_core::{event::SensorSize, wire::{default_config, Device, DeviceOptions}};
+//! use evcal_core::{detect::DetectConfig, event::SensorSize, wire::{Device, DeviceOptions}};
 //! use static_cell::StaticCell;
 //!
 //! const IMAGE: Device = Device::new(
-//!     default_config(SensorSize::DAVIS346),
+//!     DetectConfig::for_sensor(SensorSize::DAVIS346),
 //!     DeviceOptions { clock_hz: 168_000_000, ..DeviceOptions::DEFAULT },
 //! );
 //! static DEVICE: StaticCell<Device> = StaticCell::new();
@@ -73,15 +73,9 @@ use super::{
     Stats,
 };
 use crate::{
-    cluster::ClusterConfig,
-    config::{
-        DEFAULT_EPS, DEFAULT_EVENTS_PER_WINDOW, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS,
-        DEFAULT_STEP_US, MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW,
-    },
+    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     detect::{Clock, DetectConfig, Detector},
-    event::{Event, SensorSize},
-    fit::{FitConfig, FitMethod},
-    window::WindowConfig,
+    event::Event,
     wire::EventCursor,
 };
 
@@ -90,23 +84,6 @@ use crate::{
 pub const RX_FRAME: usize = 510;
 /// Default transmit buffer: the largest detection frame with [`MAX_CLUSTERS`] centres.
 pub const TX_FRAME: usize = detection_frame_max(MAX_CLUSTERS);
-
-/// The paper's defaults for a sensor (what [`DetectConfig::new`] gives), as a `const fn` so
-/// that a `Device` can be a `static` initialised at compile time, without a 47 KB temporary
-/// on a small stack: `static DEV: .. = Device::new(default_config(SensorSize::DAVIS346), ..)`.
-pub const fn default_config(sensor: SensorSize) -> DetectConfig {
-    DetectConfig {
-        sensor,
-        window: WindowConfig { events: DEFAULT_EVENTS_PER_WINDOW, step_us: DEFAULT_STEP_US },
-        cluster: ClusterConfig { eps: DEFAULT_EPS, min_pts: DEFAULT_MIN_PTS, eps_t: None },
-        fit: FitConfig {
-            method: FitMethod::Erwls,
-            max_iterations: DEFAULT_MAX_ITERATIONS,
-            min_events: DEFAULT_MIN_CLUSTER_EVENTS,
-            filled_discs: false,
-        },
-    }
-}
 
 /// How a [`Device`] behaves on the link.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -526,6 +503,7 @@ fn valid(c: &DetectConfig) -> bool {
 #[cfg(test)]
 mod test {
     use super::*;
+    use crate::event::SensorSize;
     use crate::wire::{detection_frame_max, emit_events, events_that_fit, DeviceMessage, End};
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -639,13 +617,6 @@ mod test {
         assert!(windows >= 5);
         assert_eq!(used.input_stats(), fresh.input_stats());
         assert_eq!(used.pending(), fresh.pending());
-    }
-
-    #[test]
-    fn const_defaults_are_the_detectors_defaults() {
-        for s in [SensorSize::DAVIS346, SensorSize::DVXPLORER, SensorSize::new(1280, 720)] {
-            assert_eq!(default_config(s), DetectConfig::new(s));
-        }
     }
 
     #[test]

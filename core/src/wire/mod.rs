@@ -83,7 +83,7 @@ pub use detection::{
     detection_frame_max, detection_payload_max, emit_core_detection, emit_detection, Centres, DetectionFrame,
     DetectionHeader,
 };
-pub use device::{default_config, Device, DeviceOptions};
+pub use device::{Device, DeviceOptions};
 pub use events::{emit_events, events_that_fit, BatchEvents, BatchSizer, EventBatch, EventCursor};
 pub use fixed::WireCentre;
 pub use frame::{Feed, FrameAccumulator};

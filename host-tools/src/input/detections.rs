@@ -10,9 +10,10 @@
 
 use crate::input::recording::ReadError;
 use evcal_core::{
-    config::{DEFAULT_EVENTS_PER_WINDOW, MAX_CLUSTERS},
+    config::MAX_CLUSTERS,
     detect::{DetectConfig, Detection, Detector},
     event::{Event, InputStats, SensorSize},
+    window::{disc_events_per_window as core_disc_events_per_window, ring_events_per_window},
     wire::{DetectionFrame, DetectionHeader, WireCentre},
 };
 use serde::{Deserialize, Serialize};
@@ -21,6 +22,8 @@ use serde::{Deserialize, Serialize};
 /// [`MAX_EVENTS_PER_WINDOW`](evcal_core::config::MAX_EVENTS_PER_WINDOW)). Results do not
 /// depend on it: only the number of clusters shapes them, and that matches the firmware's.
 pub const HOST_MAX_EVENTS: usize = 32_000;
+// Every sensor's default window fits.
+const _: () = assert!(evcal_core::window::LARGEST_WINDOW <= HOST_MAX_EVENTS);
 
 /// Events the host's input filter can hold while the events after a far step in time say
 /// whether it was real (the firmware's is [`MAX_HELD_EVENTS`](evcal_core::event::MAX_HELD_EVENTS)):
@@ -29,114 +32,38 @@ pub const HOST_MAX_EVENTS: usize = 32_000;
 /// not depend on it.
 pub const HOST_HELD_EVENTS: usize = 512;
 
-/// The sensor the core's default window size was chosen for: the E-Calib paper's DAVIS346,
-/// with its 4000 events per window ([`DEFAULT_EVENTS_PER_WINDOW`]).
-pub const REFERENCE_SENSOR: SensorSize = SensorSize::DAVIS346;
-
-/// The host's events per window on the [`REFERENCE_SENSOR`]: twice the paper's 4000 (the
-/// device keeps 4000, all its memory holds).
-///
-/// Why longer than the paper's: a window of 4000 events lasts 4–9 ms on a DAVIS346 watching
-/// a hand-held board, while a dim pixel answers 15–20 ms late and its OFF events trail the
-/// edge for tens of milliseconds. A window shorter than that response holds a different
-/// part of each circle's trailing events depending on how fast the circle moves, and the
-/// centres then differ from circle to circle by more than any pose explains. Twice the
-/// events halve that and double each circle's events. Measured: on the recordings of an
-/// independent pixel emulator the dim cone's cx came from +2.24 to +0.26 px, and every
-/// reprojection RMS fell by a third or more; on the simulator's physics sweep every RMS fell
-/// by 38–47 % and every case stayed within its accuracy targets, though on three spirals the
-/// σ, halved, no longer covers the simulator's own small bias (docs/accuracy.md, "Windows
-/// twice the paper's on the host"). Much longer windows
-/// are not better: a window's circle moves in a straight line in the fit, and on a curving
-/// path its centre then sits inside the curve by the acceleration times the window's
-/// duration squared over 24 (measured on the emulator's spiral at 16 000 events: 0.003 px
-/// across the motion, enough to read on its focal length).
-pub const HOST_EVENTS_PER_WINDOW: usize = 2 * DEFAULT_EVENTS_PER_WINDOW;
-
-/// Window sizes of [`default_events_per_window`] are multiples of this many events.
-pub const EVENTS_PER_WINDOW_STEP: usize = 500;
-
-/// The host's default events per window for a sensor of `sensor`'s size:
-/// [`HOST_EVENTS_PER_WINDOW`] (8000) for a DAVIS346, scaled by the sensor's linear size,
-/// `8000 · √(W·H / (346·260))`, rounded to a multiple of [`EVENTS_PER_WINDOW_STEP`] and kept
-/// within 1 to [`HOST_MAX_EVENTS`].
-///
-/// Why linear: the board's circles span a number of pixels proportional to the sensor's
-/// linear size (the board framed alike), and so does the distance they travel in a second;
-/// the event rate grows with both, as the area. A window of a fixed number of events is
-/// then shorter on a larger sensor, its edges sweep fewer pixels and each circle's events
-/// are spread thinner along an outline of more pixels: both come back to the DAVIS346's
-/// with a window proportional to the linear size (the area would keep the window's
-/// duration instead, with the motion blur it brings). The square root of the pixel count
-/// is that size for any aspect ratio (on a 16:9 sensor it is 4/3 of the height: the width
-/// of the 4:3 view a board is framed in). Measured on simulated 4x11 cones in good light
-/// (`tests/examples/window_sizes.rs`): see docs/accuracy.md, "Windows sized to the sensor".
+/// The host's default events per window for a sensor of `sensor`'s size: the core's rule,
+/// [`ring_events_per_window`] (8000 on a DAVIS346, scaled by the sensor's linear size), the
+/// same a device boots with, so that its detections and the host's are the same bytes.
 pub fn default_events_per_window(sensor: SensorSize) -> usize {
-    scaled_events_per_window(sensor, 0.5)
-}
-
-/// [`HOST_EVENTS_PER_WINDOW`] times the ratio of `sensor`'s pixel count to the
-/// [`REFERENCE_SENSOR`]'s raised to `power`, rounded to a multiple of
-/// [`EVENTS_PER_WINDOW_STEP`] and kept within 1 to [`HOST_MAX_EVENTS`].
-fn scaled_events_per_window(sensor: SensorSize, power: f64) -> usize {
-    let pixels = f64::from(sensor.width) * f64::from(sensor.height);
-    let reference = f64::from(REFERENCE_SENSOR.width) * f64::from(REFERENCE_SENSOR.height);
-    let events = HOST_EVENTS_PER_WINDOW as f64 * (pixels / reference).powf(power);
-    let steps = (events / EVENTS_PER_WINDOW_STEP as f64).round().max(1.0) as usize;
-    (steps * EVENTS_PER_WINDOW_STEP).min(HOST_MAX_EVENTS)
+    ring_events_per_window(sensor)
 }
 
 /// The host's default events per window where circles are fitted as filled discs
-/// (`FitConfig::filled_discs`): [`HOST_EVENTS_PER_WINDOW`] (8000) for a DAVIS346, scaled by
-/// the sensor's area, `8000 · W·H / (346·260)`, rounded to a multiple of
-/// [`EVENTS_PER_WINDOW_STEP`] and kept within 1 to [`HOST_MAX_EVENTS`]: 27 500 on 640x480,
-/// 32 000 (the most the host holds) on 1280x720.
-///
-/// Why the area and not the linear size of [`default_events_per_window`]: filled discs are
-/// the mark of slow pixels (a dark circle's pixels go on firing long after its edge passed),
-/// and what a slow pixel asks of a window is time, not pixels of motion. The event rate
-/// grows with the sensor's area, so the linear law makes a larger sensor's windows shorter
-/// (a 640x480 window 0.54 times a DAVIS346's), which is right for the motion when the pixels
-/// are quick and wrong when they answer later than the window lasts: the window then holds a
-/// different part of each disc's late events depending on how fast the circle moves (the
-/// reason the host's windows are twice the paper's, [`HOST_EVENTS_PER_WINDOW`]). The area
-/// keeps the DAVIS346's window duration. Measured on a simulated DVXplorer's dim cone at a
-/// 300 Hz photoreceptor (docs/notes/sweep.md, "Filled discs in windows of the DAVIS346's
-/// duration"): with 15 000 events a window lasts 5.8 ms, and the discs' lag along the
-/// motion varies with the circle's speed beyond what a view's pose takes; over seeds 5–8,
-/// fx +0.181, +0.368, +0.077, +0.258 % and cx +1.37, +0.20, +1.32, +2.43 px in windows of
-/// the linear law, +0.004, +0.146, +0.005, +0.142 % and +0.37, +0.74, +0.91, +1.68 px in
-/// windows of the area law (27 500 events, 11 ms).
+/// (`FitConfig::filled_discs`): the core's rule, [`core_disc_events_per_window`] (8000 on a
+/// DAVIS346, scaled by the sensor's area).
 pub fn disc_events_per_window(sensor: SensorSize) -> usize {
-    scaled_events_per_window(sensor, 1.0)
+    core_disc_events_per_window(sensor)
 }
 
 /// The host's default events per window on `sensor`: [`disc_events_per_window`] when
 /// `filled_discs`, else [`default_events_per_window`].
 pub fn window_events_for(sensor: SensorSize, filled_discs: bool) -> usize {
-    if filled_discs {
-        disc_events_per_window(sensor)
-    } else {
-        default_events_per_window(sensor)
-    }
+    evcal_core::window::events_per_window(sensor, filled_discs)
 }
 
 /// The core's defaults for a sensor of `sensor`'s size with the host's window size
-/// ([`default_events_per_window`]): what `evcal detect` and `calibrate` run without options.
+/// ([`default_events_per_window`]): what `evcal detect` and `calibrate` run without options,
+/// and what a device boots with ([`DetectConfig::for_sensor`]).
 pub fn host_config(sensor: SensorSize) -> DetectConfig {
-    let mut cfg = DetectConfig::new(sensor);
-    cfg.window.events = default_events_per_window(sensor);
-    cfg
+    DetectConfig::for_sensor(sensor)
 }
 
 /// [`host_config`] fitting filled discs where no ring fits, in windows of
 /// [`disc_events_per_window`]: what `evcal calibrate` detects again when the rings give no
-/// calibration.
+/// calibration ([`DetectConfig::discs_for_sensor`]).
 pub fn host_disc_config(sensor: SensorSize) -> DetectConfig {
-    let mut cfg = host_config(sensor);
-    cfg.fit.filled_discs = true;
-    cfg.window.events = disc_events_per_window(sensor);
-    cfg
+    DetectConfig::discs_for_sensor(sensor)
 }
 
 /// The detector the host runs: the firmware's clusters, a larger window and input hold.
@@ -452,55 +379,19 @@ mod test {
     use super::*;
 
     #[test]
-    fn default_window_scales_with_the_sensors_linear_size() {
-        let d = |w, h| default_events_per_window(SensorSize::new(w, h));
-        // Twice the paper's figure on its sensor; the host's detector is the device's but
-        // for the window.
-        assert_eq!(d(346, 260), 2 * DEFAULT_EVENTS_PER_WINDOW);
-        let device = DetectConfig::new(SensorSize::DAVIS346);
+    fn the_host_runs_the_devices_defaults() {
+        for sensor in [SensorSize::DAVIS346, SensorSize::DVXPLORER, SensorSize::new(320, 320)] {
+            assert_eq!(host_config(sensor), DetectConfig::for_sensor(sensor));
+            assert_eq!(host_disc_config(sensor), DetectConfig::discs_for_sensor(sensor));
+            for discs in [false, true] {
+                assert_eq!(window_events_for(sensor, discs), evcal_core::window::events_per_window(sensor, discs));
+            }
+        }
+        // The paper's detector but for the window.
+        let paper = DetectConfig::new(SensorSize::DAVIS346);
         let host = host_config(SensorSize::DAVIS346);
-        assert_eq!(host.window.events, 8000);
-        assert_eq!(DetectConfig { window: device.window, ..host }, device);
-        assert_eq!(d(640, 480), 15_000); // DVXplorer: 14 784
-        assert_eq!(d(1280, 720), 25_500); // IMX636: 25 606
-        assert_eq!(d(320, 320), 8500); // GenX320: 8536
-        assert_eq!(d(240, 180), 5500); // DAVIS240: 5549
-                                       // Linear, not quadratic: twice the width and height, twice the events.
-        assert_eq!(d(692, 520), 16_000);
-        // Multiples of the step, at least one step, at most what the host holds.
-        for (w, h) in [(1, 1), (64, 48), (346, 260), (1280, 800), (2048, 1536), (u16::MAX, u16::MAX)] {
-            let e = d(w, h);
-            assert!(
-                e % EVENTS_PER_WINDOW_STEP == 0 && (EVENTS_PER_WINDOW_STEP..=HOST_MAX_EVENTS).contains(&e),
-                "{w}x{h}: {e}"
-            );
-        }
-        assert_eq!(d(1, 1), EVENTS_PER_WINDOW_STEP);
-        assert_eq!(d(u16::MAX, u16::MAX), HOST_MAX_EVENTS);
-    }
-
-    #[test]
-    fn disc_windows_keep_the_reference_sensors_duration() {
-        let d = |w, h| disc_events_per_window(SensorSize::new(w, h));
-        // The same as the rings' on the reference sensor: only the scaling differs.
-        assert_eq!(d(346, 260), default_events_per_window(SensorSize::DAVIS346));
-        assert_eq!(d(640, 480), 27_500); // DVXplorer: 27 314
-        assert_eq!(d(320, 320), 9000); // GenX320: 9106
-                                       // IMX636: 81 959, beyond what the host holds.
-        assert_eq!(d(1280, 720), HOST_MAX_EVENTS);
-        // Quadratic: half the width and height, a quarter of the events.
-        assert_eq!(d(173, 130), 2000);
-        for (w, h) in [(1, 1), (64, 48), (346, 260), (2048, 1536), (u16::MAX, u16::MAX)] {
-            let e = d(w, h);
-            assert!(
-                e % EVENTS_PER_WINDOW_STEP == 0 && (EVENTS_PER_WINDOW_STEP..=HOST_MAX_EVENTS).contains(&e),
-                "{w}x{h}: {e}"
-            );
-        }
-        let discs = host_disc_config(SensorSize::DVXPLORER);
-        assert!(discs.fit.filled_discs);
-        assert_eq!(discs.window.events, window_events_for(SensorSize::DVXPLORER, true));
-        assert_eq!(host_config(SensorSize::DVXPLORER).window.events, window_events_for(SensorSize::DVXPLORER, false));
+        assert_eq!((paper.window.events, host.window.events), (4000, 8000));
+        assert_eq!(DetectConfig { window: paper.window, ..host }, paper);
     }
 
     #[test]

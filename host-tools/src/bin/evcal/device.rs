@@ -3,7 +3,7 @@
 use crate::ranges;
 use anyhow::{Context, Result};
 use clap::Args;
-use evcal_core::wire::default_config;
+use evcal_core::detect::DetectConfig;
 use evcal_host::{
     input::link::virtual_device::{serve_tcp, DeviceEvent, SessionEnd},
     input::recording::parse_sensor,
@@ -32,7 +32,7 @@ pub fn run(a: DeviceArgs) -> Result<()> {
     let listener = TcpListener::bind(&a.listen).with_context(|| format!("cannot listen on {}", a.listen))?;
     eprintln!("evcal: virtual device listening on tcp:{} (Ctrl-C to stop)", listener.local_addr()?);
     let idle = a.idle_timeout;
-    serve_tcp(&listener, default_config(sensor), idle, move |e| match e {
+    serve_tcp(&listener, DetectConfig::for_sensor(sensor), idle, move |e| match e {
         DeviceEvent::Connected(addr) => eprintln!("evcal: host connected from {addr}"),
         DeviceEvent::Busy { refused, serving } => {
             eprintln!("evcal: host {refused} turned away: busy with {serving} (one host at a time)")

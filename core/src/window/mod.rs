@@ -17,6 +17,13 @@
 //! are skipped and counted in [`WindowInfo::ticks_skipped`]. The offline reference code
 //! would emit an overlapping window there instead.
 
+mod size;
+
+pub use size::{
+    disc_events_per_window, events_per_window, ring_events_per_window, EVENTS_PER_WINDOW_STEP, LARGEST_WINDOW,
+    REFERENCE_EVENTS_PER_WINDOW, REFERENCE_SENSOR,
+};
+
 use crate::event::Event;
 
 /// An event inside a window: pixel, and time since the window's reference time.
