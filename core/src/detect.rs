@@ -338,6 +338,15 @@ impl<const N: usize, const C: usize, const H: usize> Detector<N, C, H> {
         self.filter.stats()
     }
 
+    /// Events were lost before they reached the detector (an input FIFO overran while a
+    /// window was worked on; the caller counts them): the window filling is dropped and the
+    /// next one starts after the loss, so that no window holds their place (see
+    /// [`Windower::lost`]). Events the input filter holds are earlier than the loss, and go
+    /// on to the windower as if after it, which only moves the next window later.
+    pub fn lost(&mut self) {
+        self.windower.lost();
+    }
+
     /// Events held by a window that has not completed yet, or by the input filter.
     pub fn pending(&self) -> usize {
         self.windower.pending() + self.filter.held()

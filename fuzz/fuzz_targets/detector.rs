@@ -15,7 +15,8 @@ use libfuzzer_sys::fuzz_target;
 fuzz_target!(|data: &[u8]| {
     let Some((head, body)) = data.split_first_chunk::<8>() else { return };
     // The first bytes choose the configuration, the rest are events of 6 bytes each:
-    // x (u16), y (u16), time step (u8), polarity (u8).
+    // x (u16), y (u16), time step (u8), polarity (u8); polarity bytes with bit 7 set say
+    // events were lost at the source just before that event (`Detector::lost`).
     let sensor = SensorSize::new(u16::from(head[0]) * 4 + 1, u16::from(head[1]) * 3 + 1);
     let cfg = DetectConfig {
         sensor,
@@ -43,6 +44,9 @@ fuzz_target!(|data: &[u8]| {
             y: u16::from_le_bytes([e[2], e[3]]) % (sensor.height + 8),
             polarity: e[5] & 1 == 1,
         };
+        if e[5] & 0x80 != 0 {
+            det.lost();
+        }
         if let Some(d) = det.push(ev) {
             check(d, capacity);
         }

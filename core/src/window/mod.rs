@@ -16,6 +16,12 @@
 //! while a window is still filling (slow scenes, where N events take longer than a step)
 //! are skipped and counted in [`WindowInfo::ticks_skipped`]. The offline reference code
 //! would emit an overlapping window there instead.
+//!
+//! Events lost before they reach the windower (a device whose input FIFO overran while it
+//! worked on a window: [`Windower::lost`]) are never inside a window: a window filling when
+//! they were lost is dropped, and the next one starts at the first tick after the first event
+//! that follows the loss (the lost events' times are unknown, and any of them may lie up to
+//! that event). A window is the first N events at or after its tick, or it is not made.
 
 mod size;
 
@@ -67,7 +73,8 @@ pub struct WindowInfo {
     pub t_ref_us: u64,
     /// Time of the window's last event, in microseconds.
     pub t_last_us: u64,
-    /// Ticks that fell inside the previous window while it filled and so started no window.
+    /// Ticks that started no window since the previous one: they fell inside it while it
+    /// filled, or events were lost around them ([`Windower::lost`]).
     pub ticks_skipped: u32,
 }
 
@@ -107,6 +114,9 @@ pub struct Windower<const N: usize> {
     t_last: u64,
     seq: u32,
     state: State,
+    /// Events were lost since the last event pushed: the next window's tick must come after
+    /// the first event pushed.
+    lost: bool,
 }
 
 impl<const N: usize> Windower<N> {
@@ -121,6 +131,7 @@ impl<const N: usize> Windower<N> {
             t_last: 0,
             seq: 0,
             state: State::Start,
+            lost: false,
         }
     }
 
@@ -146,6 +157,29 @@ impl<const N: usize> Windower<N> {
         self.t_last = 0;
         self.seq = 0;
         self.state = State::Start;
+        self.lost = false;
+    }
+
+    /// Events were lost between the last event pushed and the next (an input FIFO that
+    /// overran, counted by the caller). A window filling now is dropped (its tick counts as
+    /// skipped), and the next window starts at the first tick strictly after the next event
+    /// pushed, so that no window holds the place of lost events. Returns whether a window
+    /// was dropped.
+    pub fn lost(&mut self) -> bool {
+        match self.state {
+            // Nothing is known of the times yet: the first event pushed starts the ticks.
+            State::Start => false,
+            State::Filling { k, skipped } => {
+                self.len = 0;
+                self.lost = true;
+                self.state = State::Waiting { k: k.saturating_add(1), skipped: skipped.saturating_add(1) };
+                true
+            }
+            State::Waiting { .. } | State::Full { .. } => {
+                self.lost = true;
+                false
+            }
+        }
     }
 
     /// The configuration in force (after clamping).
@@ -176,7 +210,19 @@ impl<const N: usize> Windower<N> {
                 self.t0 = e.t_us;
                 self.begin(e, 0, 0)
             }
+            // Back-to-back windows (no ticks) start at the first event after a loss.
+            State::Waiting { k, skipped } if self.lost && self.cfg.step_us != 0 => {
+                self.lost = false;
+                // The lost events may reach up to this one: the ticks up to its time pass
+                // without a window, and it is not the first event of the next.
+                let next = self.tick_at(e.t_us).saturating_add(1).max(k);
+                let skipped = skipped.saturating_add(next.saturating_sub(k).min(u64::from(u32::MAX)) as u32);
+                self.state = State::Waiting { k: next, skipped };
+                self.t_last = e.t_us;
+                None
+            }
             State::Waiting { k, skipped } => {
+                self.lost = false;
                 if e.t_us < self.tick_time(k) {
                     self.t_last = e.t_us;
                     return None;
@@ -313,6 +359,95 @@ mod test {
         let w = run::<2>(WindowConfig { events: 10, step_us: 0 }, &[5, 6, 4, 7, 8]);
         assert_eq!(w.len(), 2);
         assert_eq!(w[0].1.len(), 2);
+    }
+
+    /// Runs `ts`, calling `lost` before each time in `losses`.
+    fn run_with_losses(cfg: WindowConfig, ts: &[u64], losses: &[u64]) -> std::vec::Vec<WindowInfo> {
+        let mut w: Windower<8> = Windower::new(cfg);
+        let mut out = std::vec::Vec::new();
+        for &t in ts {
+            if losses.contains(&t) {
+                w.lost();
+            }
+            if let Some(info) = w.push(ev(t)) {
+                out.push(info);
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn a_loss_while_a_window_fills_drops_it_and_the_next_tick_after_the_gap_starts_one() {
+        let cfg = WindowConfig { events: 3, step_us: 100 };
+        // Events lost between 110 and 120, while tick 100's window fills: it is dropped; the
+        // first event after the loss (120) may follow lost ones, so tick 200 starts the next.
+        let ts = [0, 10, 20, 100, 110, 120, 130, 205, 210, 220, 300, 301, 302];
+        let w = run_with_losses(cfg, &ts, &[120]);
+        let firsts: std::vec::Vec<_> = w.iter().map(|i| (i.seq, i.t_first_us, i.ticks_skipped)).collect();
+        assert_eq!(firsts, [(0, 0, 0), (1, 205, 1), (2, 300, 0)]);
+        // Without the loss, tick 100's window is made.
+        let w = run_with_losses(cfg, &ts, &[]);
+        assert_eq!(w[1].t_first_us, 100);
+    }
+
+    #[test]
+    fn a_loss_between_windows_moves_the_next_window_past_the_gap() {
+        let cfg = WindowConfig { events: 2, step_us: 100 };
+        // Lost before 150 (after window 0 completed, tick 100 not yet met): the lost events
+        // may lie between tick 100 and 150, so 150 does not start tick 100's window.
+        let w = run_with_losses(cfg, &[0, 1, 150, 160, 210, 220], &[150]);
+        let firsts: std::vec::Vec<_> = w.iter().map(|i| (i.t_first_us, i.ticks_skipped)).collect();
+        assert_eq!(firsts, [(0, 0), (210, 1)]);
+        // Lost before 50, all before tick 100: tick 100's window is made as usual.
+        let w = run_with_losses(cfg, &[0, 1, 50, 100, 110], &[50]);
+        let firsts: std::vec::Vec<_> = w.iter().map(|i| (i.t_first_us, i.ticks_skipped)).collect();
+        assert_eq!(firsts, [(0, 0), (100, 0)]);
+        // A loss before the first event changes nothing; back to back, the next window starts
+        // at the next event.
+        assert_eq!(run_with_losses(cfg, &[0, 1, 100, 101], &[0]).len(), 2);
+        let w = run_with_losses(WindowConfig { events: 2, step_us: 0 }, &[0, 1, 2, 3, 4, 5], &[3]);
+        let firsts: std::vec::Vec<_> = w.iter().map(|i| i.t_first_us).collect();
+        assert_eq!(firsts, [0, 3]);
+    }
+
+    proptest::proptest! {
+        /// No window holds the place of lost events: a window is its `events` events in a row,
+        /// with no loss between them, and every loss before it lies before its tick (the lost
+        /// events reach up to the event after the loss, whose time must be before the tick).
+        #[test]
+        fn no_window_spans_a_loss(
+            gaps in proptest::collection::vec(0u64..60, 1..300),
+            lossy in proptest::collection::vec(proptest::bool::weighted(0.05), 300),
+            events in 1usize..6,
+            step in 0u64..200,
+        ) {
+            let mut t = 0;
+            let ts: std::vec::Vec<u64> = gaps.iter().map(|g| { t += g; t }).collect();
+            let mut w: Windower<8> = Windower::new(WindowConfig { events, step_us: step });
+            let mut last_loss: Option<usize> = None;
+            let mut windows = 0;
+            for (i, &ti) in ts.iter().enumerate() {
+                if lossy[i] {
+                    w.lost();
+                    last_loss = Some(i);
+                }
+                let Some(info) = w.push(ev(ti)) else { continue };
+                windows += 1;
+                let first = i + 1 - events;
+                proptest::prop_assert_eq!(info.t_first_us, ts[first]);
+                let inside = lossy[first + 1..=i].iter().position(|&l| l);
+                proptest::prop_assert!(inside.is_none(), "a loss inside the window {}..={}: {:?}", first, i, inside);
+                // A loss before the first event of all changes nothing (it starts the ticks).
+                if let Some(l) = last_loss.filter(|&l| l > 0 && step > 0) {
+                    let tick = ts[first] - (ts[first] - ts[0]) % step;
+                    proptest::prop_assert!(ts[l] < tick, "a loss before event {} (t {}) reaches the window of tick {}", l, ts[l], tick);
+                }
+            }
+            // Without losses, as many windows as ever: the property is not met by making none.
+            if !lossy.iter().take(ts.len()).any(|&l| l) && ts.len() >= events {
+                proptest::prop_assert!(windows >= 1);
+            }
+        }
     }
 
     #[test]
