@@ -13,6 +13,8 @@
 //!   (about 14 KB/s) carries them.
 //! * [`evt`]: a Prophesee sensor's EVT byte stream as an event source (the core's decoders
 //!   behind the same trait).
+//! * [`paced`]: a recording replayed at the sensor's pace on the device's clock, through a
+//!   FIFO of fixed size, losing (and counting) what arrives while it is full.
 //! * [`runner`]: the window loop (feed, process between the benchmark markers, hand each
 //!   detection on), shared by every mode of the firmware.
 //! * [`sensor`]: a sensor's reset line and control bus (embedded-hal `OutputPin` and `I2c`):
@@ -23,6 +25,7 @@
 
 pub mod bulk;
 pub mod evt;
+pub mod paced;
 pub mod runner;
 pub mod sensor;
 pub mod source;

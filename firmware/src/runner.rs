@@ -22,12 +22,13 @@ pub struct Runner<'d, K, const N: usize, const C: usize> {
     clock: K,
     events: u64,
     windows: u64,
+    lost: u64,
 }
 
 impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
     /// A runner over `det`, timing stages with `clock`.
     pub fn new(det: &'d mut Detector<N, C>, clock: K) -> Self {
-        Self { det, clock, events: 0, windows: 0 }
+        Self { det, clock, events: 0, windows: 0, lost: 0 }
     }
 
     /// Feeds one event; when it completes a window, processes the window and returns its
@@ -54,6 +55,11 @@ impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
                             on_window(d);
                         }
                     }
+                    let lost = src.take_lost();
+                    if lost > 0 {
+                        self.det.lost();
+                        self.lost += lost;
+                    }
                 }
                 Err(e) => {
                     // What the input filter still holds (events after a pause) is windowed too.
@@ -75,6 +81,11 @@ impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
     /// Windows processed so far.
     pub const fn windows(&self) -> u64 {
         self.windows
+    }
+
+    /// Events the source lost (a full FIFO), kept out of every window.
+    pub const fn lost(&self) -> u64 {
+        self.lost
     }
 
     /// The detector (its input statistics, its configuration).
@@ -142,6 +153,50 @@ mod test {
         assert_eq!(want.len(), 10);
         for (a, b) in got.iter().zip(&want) {
             assert_eq!((a.info, &a.centres), (b.info, &b.centres));
+        }
+    }
+
+    /// A source that loses events while the detector works: every window the runner makes
+    /// is the one a detector makes of the events kept, told of each loss where it fell.
+    #[test]
+    fn losses_at_the_source_reach_the_detector_in_their_place() {
+        use crate::paced::PacedSource;
+        use core::cell::Cell;
+        let sensor = SensorSize::new(64, 48);
+        let mut cfg = DetectConfig::new(sensor);
+        cfg.window = WindowConfig { events: 100, step_us: 150 };
+        let evs: Vec<Event> = (0..3000u64)
+            .map(|i| Event { t_us: i, x: 10 + (i % 5) as u16, y: 20 + (i % 7) as u16, polarity: true })
+            .collect();
+        // The clock: 1 µs per reading, 90 µs more per window's work (the hooks).
+        let clock = Cell::new(0u64);
+        struct Busy<'c>(&'c Cell<u64>);
+        impl Clock for Busy<'_> {
+            fn now(&mut self) -> u32 {
+                0
+            }
+            fn window_ends(&mut self) {
+                self.0.set(self.0.get() + 90);
+            }
+        }
+        let mut src: PacedSource<_, _, 16> = PacedSource::new(SliceSource::new(&evs), || {
+            clock.set(clock.get() + 1);
+            clock.get()
+        });
+        let mut det: Box<Detector<128, 8>> = Box::new(Detector::new(cfg));
+        let mut got = Vec::new();
+        let mut r = Runner::new(&mut det, Busy(&clock));
+        assert_eq!(r.drain(&mut src, |d| got.push(d.info)), SourceError::End);
+        let st = src.stats();
+        assert!(st.lost > 100 && st.losses >= 5, "the device is slow enough to lose: {st:?}");
+        assert_eq!(r.lost(), st.lost);
+        assert!(got.len() >= 5, "{} windows", got.len());
+        // The events kept are the events not lost; each window is 100 of them in a row, with
+        // no lost event between its first and its last.
+        let kept = r.events();
+        assert_eq!(kept + st.lost, evs.len() as u64);
+        for w in &got {
+            assert_eq!(w.t_last_us - w.t_first_us, 99, "window {} holds lost events: {w:?}", w.seq);
         }
     }
 }

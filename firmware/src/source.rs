@@ -41,11 +41,22 @@ pub trait EventSource {
     /// is available now (a live source that will have more); `Err(SourceError::End)` means
     /// there will be no more.
     fn read_events(&mut self, buf: &mut [Event]) -> Result<usize, SourceError>;
+
+    /// Events lost since the last call (a full FIFO), told once every event read before
+    /// them has been taken and before any read after them: the window loop keeps them out
+    /// of every window (`Detector::lost`). A source that loses nothing keeps the default.
+    fn take_lost(&mut self) -> u64 {
+        0
+    }
 }
 
 impl<S: EventSource + ?Sized> EventSource for &mut S {
     fn read_events(&mut self, buf: &mut [Event]) -> Result<usize, SourceError> {
         (**self).read_events(buf)
+    }
+
+    fn take_lost(&mut self) -> u64 {
+        (**self).take_lost()
     }
 }
 
