@@ -83,8 +83,8 @@ pub struct CoreArgs {
     /// pixels and cross more of them), so a window of a fixed number of events is shorter
     /// and each circle's events sparser along its outline (docs/accuracy.md: Windows sized
     /// to the sensor). The value chosen is printed on standard error. Up to 32000 on the
-    /// host; `evcal replay` asks a device for at most what it holds (the firmware: 4000),
-    /// unless given this option.
+    /// host; `evcal replay` asks a device for at most what it holds (the Cortex-M4F
+    /// firmware: 8000), unless given this option.
     #[arg(long, value_name = "N",
           value_parser = clap::value_parser!(u32).range(1..=detections::HOST_MAX_EVENTS as i64),
           allow_negative_numbers = true)]

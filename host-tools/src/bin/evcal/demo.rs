@@ -22,7 +22,7 @@ use std::{
 
 #[derive(Args)]
 pub struct DemoArgs {
-    /// Seconds of motion (a 4000-event window every 33 ms: 30 windows a second; only the
+    /// Seconds of motion (an 8000-event window every 33 ms: 30 windows a second; only the
     /// milliseconds each window needs are simulated). 8 s take the cone through its whole
     /// range of tilts (15–35°, a 7.3 s cycle): with 3 s, half of it, fx read 0.13 % long.
     /// 0.001 to 3600.
@@ -73,10 +73,9 @@ fn demo(a: &DemoArgs) -> Result<()> {
         a.light.name(),
         a.seconds
     )?;
-    // Every window goes through the device's protocol loop below, so the device's window:
-    // the paper's 4000 events, what the firmware holds (`evcal calibrate` on a recording
-    // cuts the host's longer windows).
-    let det = DetectConfig::new(SensorSize { width: c.width, height: c.height });
+    // Every window goes through the device's protocol loop below, in the window a device
+    // boots with, the host's for the sensor (8000 events on a DAVIS346).
+    let det = DetectConfig::for_sensor(SensorSize { width: c.width, height: c.height });
     let (events, sim) = run_windowed_simulation(cfg, a.seconds, det.window, a.quiet)?;
     // As simulate_windows steps.
     let step_s = (det.window.step_us as f64 * 1e-6).max(1e-3);

@@ -58,8 +58,9 @@ pub fn run(a: ReplayArgs) -> Result<()> {
         hello_timeout: a.hello_timeout,
         retry_timeout: Duration::from_millis(a.retry_ms),
         all_events: a.all_events,
-        // The sensor's default is the host's choice: a device holding fewer (the firmware's
-        // 4000) cuts windows of what it holds. A size the user gave is theirs: an error.
+        // The sensor's default is the host's choice: a device holding fewer (the Cortex-M4F's
+        // 8000, on a larger sensor) cuts windows of what it holds. A size the user gave is
+        // theirs: an error.
         window_up_to_device: a.core.events_per_window.is_none(),
         ..ReplayOptions::default()
     };
