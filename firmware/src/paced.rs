@@ -9,7 +9,11 @@
 //! turned into time by the board's clock and cycles per instruction): the core's work on a
 //! window takes what it takes, and the events that arrive meanwhile wait in the FIFO or are
 //! lost. While the device has nothing to do (the FIFO empty), it waits for the next event:
-//! the time it would sleep is skipped, not spent polling.
+//! the time it would sleep is skipped, not spent polling. The source's own work (reading and
+//! decoding the recording, the FIFO's bookkeeping, which a sensor's interface and its DMA do
+//! without the core) is left out of the device's time: what is paced is the core's, from the
+//! input filter on. A sensor's format costs the core its decoding on top (the EVT decoders'
+//! cost per event, docs/firmware.md).
 
 use crate::source::{EventSource, SourceError};
 use evcal_core::event::Event;
@@ -41,6 +45,8 @@ pub struct PacedSource<S, T, const F: usize = FIFO_EVENTS> {
     boundary: Option<usize>,
     lost_pending: u64,
     lost_ready: u64,
+    /// Clock time spent in this source, left out of the device's time.
+    excluded: u64,
     stats: PacedStats,
 }
 
@@ -77,6 +83,7 @@ impl<S: EventSource, T: FnMut() -> u64, const F: usize> PacedSource<S, T, F> {
             boundary: None,
             lost_pending: 0,
             lost_ready: 0,
+            excluded: 0,
             stats: PacedStats::default(),
         }
     }
@@ -132,7 +139,20 @@ impl<S: EventSource, T: FnMut() -> u64, const F: usize> PacedSource<S, T, F> {
 
 impl<S: EventSource, T: FnMut() -> u64, const F: usize> EventSource for PacedSource<S, T, F> {
     fn read_events(&mut self, buf: &mut [Event]) -> Result<usize, SourceError> {
-        let now = (self.now_us)();
+        let entered = (self.now_us)();
+        let r = self.read_at(entered.saturating_sub(self.excluded), buf);
+        self.excluded = self.excluded.saturating_add((self.now_us)().saturating_sub(entered));
+        r
+    }
+
+    fn take_lost(&mut self) -> u64 {
+        core::mem::take(&mut self.lost_ready)
+    }
+}
+
+impl<S: EventSource, T: FnMut() -> u64, const F: usize> PacedSource<S, T, F> {
+    /// [`EventSource::read_events`] at the device's time `now`.
+    fn read_at(&mut self, now: u64, buf: &mut [Event]) -> Result<usize, SourceError> {
         self.admit(now);
         if self.boundary == Some(0) {
             // Every event before the loss was read: the loss is told before any after it.
@@ -162,10 +182,6 @@ impl<S: EventSource, T: FnMut() -> u64, const F: usize> EventSource for PacedSou
             *b -= n;
         }
         Ok(n)
-    }
-
-    fn take_lost(&mut self) -> u64 {
-        core::mem::take(&mut self.lost_ready)
     }
 }
 

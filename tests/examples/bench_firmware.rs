@@ -15,7 +15,9 @@
 //! (33.333), `--events N` (the host's default window for the sensor), `--plugin LIB` (no
 //! exact counts without it), `--cpi X` and `--mhz F` (the board's), `--dir DIR`
 //! (target/bench-firmware), `--profile N` (also list the N functions that execute the most
-//! instructions inside the windows; slower).
+//! instructions inside the windows; slower), `--paced` (the events arrive at the recording's
+//! own pace on the board's clock, through the firmware's FIFO: what the device loses while it
+//! works on a window, outside every window).
 
 use anyhow::{bail, ensure, Context, Result};
 use evcal_core::{detect::DetectConfig, event::SensorSize, window::ring_events_per_window};
@@ -72,6 +74,7 @@ struct Opts {
     mhz: f64,
     dir: PathBuf,
     profile: usize,
+    paced: bool,
 }
 
 fn opts() -> Result<Opts> {
@@ -87,6 +90,7 @@ fn opts() -> Result<Opts> {
         mhz: 0.0,
         dir: firmware::target_dir().join("bench-firmware"),
         profile: 0,
+        paced: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -120,6 +124,7 @@ fn opts() -> Result<Opts> {
             "--mhz" => o.mhz = v()?.parse()?,
             "--dir" => o.dir = v()?.into(),
             "--profile" => o.profile = v()?.parse()?,
+            "--paced" => o.paced = true,
             _ => bail!("unknown option {a} (see the doc comment of tests/examples/bench_firmware.rs)"),
         }
     }
@@ -183,12 +188,19 @@ fn main() -> Result<()> {
     let mut cfg = DetectConfig::new(sensor);
     cfg.window.events = o.events;
     cfg.window.step_us = step_us;
-    let want = firmware::host_windows(&events, cfg);
+    let mut want = firmware::host_windows(&events, cfg);
 
     eprintln!("bench: replaying {} events ({} windows) in QEMU", events.len(), want.len());
     let t = std::time::Instant::now();
     let counter = o.plugin.as_deref().map(|plugin| Counter { plugin, profile: o.profile > 0 });
-    let run: BenchRun = firmware::run_bench(&elf, &bulk, o.events, step_us, counter)?;
+    let run: BenchRun = if o.paced {
+        let run = firmware::run_bench_paced(&elf, &bulk, o.events, step_us, (o.mhz, o.cpi), counter)?;
+        // The device's windows are the host's on the events it kept, told of each loss.
+        want = firmware::host_windows_after_losses(&events, cfg, &run.losses);
+        run
+    } else {
+        firmware::run_bench(&elf, &bulk, o.events, step_us, counter)?
+    };
     let qemu_s = t.elapsed().as_secs_f64();
 
     // The figures mean nothing unless the device computed what the host computes.
@@ -215,6 +227,22 @@ fn main() -> Result<()> {
         full.len(),
         identical
     );
+    if o.paced {
+        let get = |k: &str| run.paced.iter().find(|(n, _)| n == k).map_or(0, |(_, v)| *v);
+        let span_s = events.last().zip(events.first()).map_or(0.0, |(l, f)| (l.t_us - f.t_us) as f64 * 1e-6);
+        println!(
+            "paced: the events at the recording's pace ({:.2} M events/s) into a FIFO of {} events, on a core at {} MHz, CPI {}: {} arrived, {} lost in {} losses (outside every window: the device's windows are the host's on the events kept), FIFO peak {}, idle {:.1} % of the time",
+            events.len() as f64 / span_s.max(1e-9) / 1e6,
+            evcal_firmware::paced::FIFO_EVENTS,
+            o.mhz,
+            o.cpi,
+            get("arrived"),
+            get("lost"),
+            get("losses"),
+            get("fifo_peak"),
+            100.0 * get("idle_us") as f64 * 1e-6 / span_s.max(1e-9)
+        );
+    }
     let centres: usize = run.windows.iter().map(|w| w.centres.len()).sum();
     println!("centres per window: {:.1} mean", centres as f64 / run.windows.len().max(1) as f64);
     // The device's detection frames are these bytes exactly (tests/tests/firmware_qemu.rs).
@@ -262,13 +290,25 @@ fn main() -> Result<()> {
             budget / o.events as f64,
             m(400.0 * o.events as f64)
         );
-        if let Some(total) = run.total_instructions {
+        // Paced, the source's own bookkeeping runs on the core too: the intake is measured
+        // unpaced.
+        if let Some(total) = run.total_instructions.filter(|_| !o.paced) {
             let inside: u64 = run.instructions.iter().sum();
             let fed = run.num("events")?;
+            let per_event = (total - inside) as f64 / fed.max(1) as f64;
             println!(
-                "outside the windows' processing (boot, bulk-file reads and decoding, input filter, windowing, result lines): {:.0} instructions per event fed ({} events)",
-                (total - inside) as f64 / fed.max(1) as f64,
-                fed
+                "outside the windows' processing (boot, bulk-file reads and decoding, input filter, windowing, result lines): {per_event:.0} instructions per event fed ({fed} events)"
+            );
+            // What the core can take in while it works on no window, and what is left of a
+            // second once 30 windows of the mean cost are worked on.
+            let per_second = o.mhz * 1e6 / o.cpi;
+            let windows = 30.0 * summary(&run.instructions.iter().map(|&n| n as f64).collect::<Vec<_>>()).mean;
+            println!(
+                "intake at {} MHz, CPI {}: {:.2} M events/s while no window is worked on; {:.2} M events/s in the time 30 windows a second leave",
+                o.mhz,
+                o.cpi,
+                per_second / per_event / 1e6,
+                (per_second - windows).max(0.0) / per_event / 1e6
             );
         }
     }

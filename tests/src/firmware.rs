@@ -207,6 +207,12 @@ pub struct BenchRun {
     pub total_instructions: Option<u64>,
     /// With profiling: instructions executed inside the spans, by function, most first.
     pub profile: Vec<(String, u64)>,
+    /// Paced runs ([`run_bench_paced`]): each loss at the source, as (events read before
+    /// it, events lost), in order.
+    pub losses: Vec<(u64, u64)>,
+    /// Paced runs: the source's counts (`arrived`, `lost`, `losses`, `idle_us`,
+    /// `fifo_peak`).
+    pub paced: Vec<(String, u64)>,
 }
 
 impl BenchRun {
@@ -239,9 +245,31 @@ pub fn run_bench(
     step_us: u64,
     counter: Option<Counter>,
 ) -> Result<BenchRun> {
+    run_bench_with(elf, bulk_file, &format!("bench {} {events_per_window} {step_us}", bulk_file.display()), counter)
+}
+
+/// [`run_bench`] with the events arriving at the recording's own pace on the device's clock,
+/// as on a core at `mhz` with `cpi` cycles per instruction, through the firmware's FIFO
+/// (`evcal_firmware::paced`): what arrives while it is full is lost, and each loss is in
+/// [`BenchRun::losses`].
+pub fn run_bench_paced(
+    elf: &Path,
+    bulk_file: &Path,
+    events_per_window: usize,
+    step_us: u64,
+    (mhz, cpi): (f64, f64),
+    counter: Option<Counter>,
+) -> Result<BenchRun> {
+    let cpi_percent = (cpi * 100.0).round() as u64;
+    let append =
+        format!("bench {} {events_per_window} {step_us} paced {} {cpi_percent}", bulk_file.display(), mhz.round());
+    run_bench_with(elf, bulk_file, &append, counter)
+}
+
+fn run_bench_with(elf: &Path, bulk_file: &Path, append: &str, counter: Option<Counter>) -> Result<BenchRun> {
     let mut cmd = Command::new("bash");
     cmd.arg(workspace_root().join("scripts/qemu-run.sh")).arg(elf);
-    cmd.arg("-append").arg(format!("bench {} {events_per_window} {step_us}", bulk_file.display()));
+    cmd.arg("-append").arg(append);
     let log = bulk_file.with_extension("insn.log");
     if let Some(c) = counter {
         let (start, stop) = (symbol(elf, "bench_start")?, symbol(elf, "bench_stop")?);
@@ -259,6 +287,12 @@ pub fn run_bench(
         } else if let Some(rest) = line.strip_prefix("S ") {
             let w: Vec<&str> = rest.split_ascii_whitespace().collect();
             run.summary = w.chunks_exact(2).map(|p| (p[0].to_string(), p[1].to_string())).collect();
+        } else if let Some(rest) = line.strip_prefix("L ") {
+            let (read, lost) = rest.split_once(' ').with_context(|| format!("loss line {line:?}"))?;
+            run.losses.push((read.parse()?, lost.parse()?));
+        } else if let Some(rest) = line.strip_prefix("P ") {
+            let w: Vec<&str> = rest.split_ascii_whitespace().collect();
+            run.paced = w.chunks_exact(2).map(|p| Ok((p[0].to_string(), p[1].parse()?))).collect::<Result<_>>()?;
         }
     }
     ensure!(!run.summary.is_empty(), "no summary line; the firmware printed:\n{}", tail(&stdout));
@@ -322,6 +356,35 @@ fn by_function(elf: &Path, counts: impl Iterator<Item = (u64, u64)>) -> Result<V
     let mut v: Vec<(String, u64)> = sums.into_iter().map(|(k, n)| (k.to_string(), n)).collect();
     v.sort_by(|a, b| b.1.cmp(&a.1).then_with(|| a.0.cmp(&b.0)));
     Ok(v)
+}
+
+/// The host-side run of the core over the events a paced run kept: `events` without those
+/// each loss in `losses` took ((events read before it, events lost), as
+/// [`BenchRun::losses`]), the detector told of each loss in its place.
+pub fn host_windows_after_losses(events: &[Event], cfg: DetectConfig, losses: &[(u64, u64)]) -> Vec<BenchWindow> {
+    let mut det: Box<HostDetector> = Box::new(Detector::new(cfg));
+    let mut out = Vec::new();
+    let (mut read, mut next) = (0u64, losses.iter().peekable());
+    let mut i = 0usize;
+    loop {
+        // A loss after the last event kept is told too, before the end.
+        if let Some(&&(_, lost)) = next.peek().filter(|(at, _)| *at == read) {
+            det.lost();
+            i += lost as usize;
+            next.next();
+            continue;
+        }
+        let Some(e) = events.get(i) else { break };
+        if let Some(d) = det.push(*e) {
+            out.push(BenchWindow::of_detection(d));
+        }
+        read += 1;
+        i += 1;
+    }
+    while let Some(d) = det.end() {
+        out.push(BenchWindow::of_detection(d));
+    }
+    out
 }
 
 /// The host-side run of the core over `events` (what `evcal detect` computes).

@@ -317,6 +317,38 @@ fn bulk_source_through_the_protocol_equals_the_host_core() {
     assert_eq!(st.frames_bad, 0);
 }
 
+/// Events at the sensor's pace (`-append "bench FILE EVENTS STEP paced 168 125"`: a simulated
+/// DAVIS346 at its 1.1 M events/s, arriving on the clock of a 168 MHz Cortex-M4F through the
+/// firmware's 256-event FIFO): the device cannot take in every event while it works on a
+/// window, so it loses some, counts every one, and keeps them out of every window: each
+/// window it makes is the host's on the events it kept, told of each loss in its place.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn events_lost_at_the_sensors_pace_are_counted_and_outside_every_window() {
+    let elf = elf();
+    let (events, paper) = recording(12, 0.6, 33_333);
+    let mut cfg = evcal_host::input::detections::host_config(paper.sensor);
+    cfg.window.step_us = paper.window.step_us;
+    let bulk = scratch("paced.bin");
+    firmware::write_bulk(&bulk, cfg.sensor, &events).unwrap();
+    let run = firmware::run_bench_paced(&elf, &bulk, cfg.window.events, cfg.window.step_us, (168.0, 1.25), None)
+        .expect("firmware run");
+    let count = |k: &str| run.paced.iter().find(|(n, _)| n == k).map(|(_, v)| *v).unwrap();
+    let (arrived, lost) = (count("arrived"), count("lost"));
+    assert_eq!(arrived, events.len() as u64, "every event arrived");
+    assert!(lost > 0 && !run.losses.is_empty(), "the device loses events at this pace: {:?}", run.paced);
+    assert_eq!(run.losses.iter().map(|(_, n)| n).sum::<u64>(), lost, "every loss told");
+    assert_eq!(run.num("events").unwrap() + lost, arrived, "every event kept or counted lost");
+    let want = firmware::host_windows_after_losses(&events, cfg, &run.losses);
+    assert!(!want.is_empty(), "windows are made between the losses");
+    assert_eq!(run.windows.len(), want.len(), "windows");
+    for (d, h) in run.windows.iter().zip(&want) {
+        assert_eq!(d.without_times(), *h, "window {}", h.seq);
+    }
+    // Fewer windows than the host makes of every event: the ones a loss fell in are dropped.
+    assert!(want.len() < firmware::host_windows(&events, cfg).len());
+}
+
 /// Filled discs on the device: a DVXplorer in dim light with a 300 Hz photoreceptor, whose
 /// dark circles fill with their slow pixels' events (`FitConfig::filled_discs`), replayed
 /// from a file through the protocol with the flag asked for: every frame the host's, byte
