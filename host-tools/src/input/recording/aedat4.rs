@@ -14,6 +14,7 @@
 //! count: the reader uses it to know the event count up front and, at the end, to check that
 //! it read every event the file holds.
 
+pub use super::aedat4info::StreamInfo;
 use super::{
     aedat4info::{choose_stream, parse_info},
     codec::{self, Codec},
@@ -59,25 +60,6 @@ pub enum Compression {
     Lz4,
     /// Zstandard frames (DV's `ZSTD` and `ZSTD_HIGH`).
     Zstd,
-}
-
-/// One stream listed in the info node.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct StreamInfo {
-    /// The id packets carry.
-    pub id: i32,
-    /// The output's name (`originalOutputName`, e.g. `events`, `frames`).
-    pub name: String,
-    /// The type identifier (`EVTS` events, `FRME` frames, `IMUS`, `TRIG`, ...).
-    pub type_id: String,
-    /// The sensor size, for streams that state one (`sizeX`, `sizeY`).
-    pub size: Option<SensorSize>,
-}
-
-impl std::fmt::Display for StreamInfo {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{} '{}' ({})", self.id, self.name, self.type_id)
-    }
 }
 
 /// Streaming reader of the events of one AEDAT4 event stream.

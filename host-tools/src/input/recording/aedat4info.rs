@@ -1,7 +1,26 @@
 //! The info node of an AEDAT4 file (the XML document its IOHeader holds): the streams it
 //! lists, and the choice of the event stream to read.
 
-use super::aedat4::StreamInfo;
+use evcal_core::event::SensorSize;
+
+/// One stream listed in the info node.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct StreamInfo {
+    /// The id packets carry.
+    pub id: i32,
+    /// The output's name (`originalOutputName`, e.g. `events`, `frames`).
+    pub name: String,
+    /// The type identifier (`EVTS` events, `FRME` frames, `IMUS`, `TRIG`, ...).
+    pub type_id: String,
+    /// The sensor size, for streams that state one (`sizeX`, `sizeY`).
+    pub size: Option<SensorSize>,
+}
+
+impl std::fmt::Display for StreamInfo {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} '{}' ({})", self.id, self.name, self.type_id)
+    }
+}
 
 /// The streams of an info node: `<node name="outInfo">` holds one `<node name="ID">` per
 /// stream with `<attr key="typeIdentifier">`, `<attr key="originalOutputName">` and a child

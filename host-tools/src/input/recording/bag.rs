@@ -21,6 +21,7 @@
 //! frame_id), `u32` height, `u32` width, `Event[]` (`u32` count, then 13 bytes each: `u16` x,
 //! `u16` y, `u32` secs, `u32` nsecs, `u8` polarity). Times become µs rounded to nearest.
 
+pub use super::bagrecords::BagTopic;
 use super::{
     bagrecords::{connection, ChunkStream, EventArrayHead, Fields, MAX_HELD},
     codec::Codec,
@@ -50,15 +51,6 @@ const OP_INDEX_DATA: u8 = 0x04;
 const OP_CHUNK: u8 = 0x05;
 const OP_CHUNK_INFO: u8 = 0x06;
 const OP_CONNECTION: u8 = 0x07;
-
-/// One connection (a topic with its message type) of a bag.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct BagTopic {
-    /// The topic.
-    pub topic: String,
-    /// Its message type, e.g. `dvs_msgs/EventArray`.
-    pub msg_type: String,
-}
 
 /// Streaming reader of the events of one `dvs_msgs/EventArray` topic of a ROS1 bag.
 pub struct BagReader {

@@ -6,12 +6,18 @@
 //! that expands to gigabytes, would set evcal's memory. Streamed, a chunk costs the decoder's
 //! buffers whatever its size, and nothing is allocated from a size the file declares.
 
-use super::{
-    bag::BagTopic,
-    codec::{self, Codec},
-};
+use super::codec::{self, Codec};
 use evcal_core::event::SensorSize;
 use std::io::{BufRead, BufReader, Read};
+
+/// One connection (a topic with its message type) of a bag.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BagTopic {
+    /// The topic.
+    pub topic: String,
+    /// Its message type, e.g. `dvs_msgs/EventArray`.
+    pub msg_type: String,
+}
 
 /// Largest record header, and largest record data held in memory (connection records: a
 /// topic and its message definition, a few kB; chunk infos: 8 bytes a connection): well above

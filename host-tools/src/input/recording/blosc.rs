@@ -14,12 +14,16 @@
 //!
 //! evcal writes no Blosc data, so the encoder is absent: HDF5 refuses to write with it.
 
-use super::h5cols::MAX_CHUNK_BYTES;
 use hdf5_sys::h5::{H5allocate_memory, H5free_memory};
 use hdf5_sys::h5p::H5Pget_filter_by_id2;
 use hdf5_sys::h5z::{H5Z_class2_t, H5Zregister, H5Z_CLASS_T_VERS, H5Z_FLAG_REVERSE};
 use std::ffi::{c_uint, c_void};
 use std::sync::OnceLock;
+
+/// The largest HDF5 chunk read, decoded; writers use kilobytes to a few megabytes. Here, with
+/// the filter that decodes chunks, the lowest of the HDF5 modules, which the others take it
+/// from.
+pub(crate) const MAX_CHUNK_BYTES: u64 = 64 << 20;
 
 /// The id HDF5 files name the Blosc filter by (registered with The HDF Group).
 const BLOSC_ID: i32 = 32001;

@@ -31,7 +31,7 @@ impl H5Reader {
                  datasets x, y, t, p in 'events/' or at the root; the file has: [{names}]"
             ))
         })?;
-        super::h5cols::check_filters(&ds).map_err(|m| err(format!("'events_data': {m}")))?;
+        super::h5filters::check_filters(&ds).map_err(|m| err(format!("'events_data': {m}")))?;
         // Any other type (strings, compounds of kilobytes) would make HDF5 allocate a
         // conversion buffer of rows times its size before finding anything wrong (a corrupt
         // file took 4 GB that way).

@@ -19,7 +19,8 @@
 //! within the file).
 
 use super::blosc;
-use super::h5cols::MAX_CHUNK_BYTES;
+use super::blosc::MAX_CHUNK_BYTES;
+use super::h5filters::filter_hint;
 use super::h5index::ChunkIndex;
 use hdf5::H5Type;
 use hdf5_sys::h5::hsize_t;
@@ -192,7 +193,7 @@ impl Column {
             } else {
                 self.ds.read_slice_2d::<T, _>((rows, ..)).map(|a| a.iter().copied().collect())
             };
-            return r.map_err(|e| format!("{e}{}", super::h5cols::filter_hint(&self.ds, &e.to_string())));
+            return r.map_err(|e| format!("{e}{}", filter_hint(&self.ds, &e.to_string())));
         };
         let (per_chunk_rows, per_chunk_cols, sc) = (c.rows, c.cols, c.scalar);
         let mut out = vec![T::from_int(0); rows.len() * width];

@@ -18,6 +18,7 @@ mod h5attrs;
 mod h5chunks;
 mod h5cols;
 mod h5file;
+mod h5filters;
 mod h5index;
 pub mod prophesee;
 mod text;
