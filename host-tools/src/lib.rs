@@ -2,6 +2,9 @@
 //! used by the `evcal` CLI.
 
 #![deny(missing_docs)]
+// Only the HDF5 modules that call its C library directly may use `unsafe` (allowed by name in
+// `input::recording`).
+#![deny(unsafe_code)]
 
 pub mod calib;
 pub mod eval;

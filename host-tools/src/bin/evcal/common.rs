@@ -478,6 +478,7 @@ pub fn handle_signals() {
             // Not `exit`: its handlers (HDF5's library shutdown among them) would run while
             // the main thread may be inside HDF5.
             #[cfg(unix)]
+            #[allow(unsafe_code)]
             // SAFETY: `_exit` ends the process without touching its state.
             unsafe {
                 libc::_exit(EXIT_INTERRUPTED)

@@ -2,6 +2,9 @@
 //!
 //! One module per command; `common` holds what several commands share.
 
+// One `unsafe` call, allowed where it stands: `_exit` on a second Ctrl-C (`common::handle_signals`).
+#![deny(unsafe_code)]
+
 mod calibrate;
 mod collect;
 mod common;

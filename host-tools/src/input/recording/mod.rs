@@ -9,16 +9,19 @@ mod aedat4;
 mod aedat4info;
 mod bag;
 mod bagrecords;
+#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
 mod blosc;
 mod bytes;
 mod codec;
 mod flatbuf;
 mod h5;
 mod h5attrs;
+#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
 mod h5chunks;
 mod h5cols;
 mod h5file;
 mod h5filters;
+#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
 mod h5index;
 pub mod prophesee;
 mod text;
