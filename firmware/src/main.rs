@@ -30,24 +30,24 @@ macro_rules! log_info {
     }};
 }
 
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod bench;
 #[cfg(target_os = "none")]
 mod board;
 #[cfg(target_os = "none")]
 mod device;
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod hostfs;
 #[cfg(target_os = "none")]
 mod markers;
 #[cfg(target_os = "none")]
 mod role;
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod stack;
 
-#[cfg(all(target_os = "none", feature = "defmt", feature = "board-stm32f405"))]
+#[cfg(all(target_os = "none", feature = "defmt", not(emulated)))]
 use defmt_rtt as _;
-#[cfg(all(target_os = "none", feature = "defmt", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", feature = "defmt", emulated))]
 use defmt_semihosting as _;
 
 #[cfg(target_os = "none")]
