@@ -11,7 +11,7 @@
 # Further arguments go to QEMU after the image (e.g. -append "bench FILE", -plugin ...).
 set -euo pipefail
 elf="$1"; shift || true
-cpu=$(readelf -A "$elf" 2>/dev/null | sed -n 's/.*Tag_CPU_name: "\(.*\)"/\1/p' | head -n 1)
+cpu=$(readelf -A "$elf" | sed -n 's/.*Tag_CPU_name: "\(.*\)"/\1/p' | head -n 1)
 case "${EVCAL_QEMU_MACHINE:-}" in
   mps2-an500) cpu=cortex-m7 ;;
   mps2-an386) cpu=cortex-m4 ;;
