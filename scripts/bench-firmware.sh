@@ -6,7 +6,7 @@
 # the firmware's bench_start/bench_stop markers, counted by a QEMU plugin), per stage
 # (SysTick under -icount shift=0), the time they imply at the board's clock, and flash/RAM;
 # it ends with one `bench-summary:` line a script can read (tests/examples/bench_firmware.rs).
-#   bash scripts/bench-firmware.sh [--board m4f] [--sensor davis346|genx320|dvxplorer|imx636]
+#   bash scripts/bench-firmware.sh [--board m4f|m7] [--sensor davis346|genx320|dvxplorer|imx636]
 #        [--light good|low] [--seconds S] [--step-ms MS] [--events N] [--cpi X] [--mhz F] [--profile N]
 # Takes about a minute (mostly the simulation); output also goes to target/bench-firmware/report.txt.
 set -euo pipefail
@@ -17,6 +17,6 @@ plugin=target/bench-firmware/libinsn_count.so
 if [ ! -e "$plugin" ] || [ firmware/tools/insn_count.c -nt "$plugin" ]; then
   gcc -shared -fPIC -O2 -Wall -o "$plugin" firmware/tools/insn_count.c
 fi
-cargo build -q -p evcal-firmware --target thumbv7em-none-eabihf --profile firmware
+# The example builds the board's image itself (tests/src/firmware.rs, build_firmware_for).
 cargo run -q --release -p evcal-tests --example bench_firmware -- --plugin "$plugin" "$@" \
   | tee target/bench-firmware/report.txt

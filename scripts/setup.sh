@@ -14,7 +14,8 @@ done
 need_apt=()
 dpkg -s pkg-config >/dev/null 2>&1 || need_apt+=(pkg-config)
 command -v gcc >/dev/null 2>&1 || need_apt+=(gcc)
-# binutils' size and nm read the firmware's ARM ELF (scripts/firmware-size.sh, the QEMU tests).
+# binutils' size, nm and readelf read the firmware's ARM ELF (scripts/firmware-size.sh, the QEMU
+# tests; scripts/qemu-run.sh picks the emulated board from the image's CPU with readelf).
 command -v size >/dev/null 2>&1 || need_apt+=(binutils)
 if [ "${#need_apt[@]}" -gt 0 ]; then
   echo "setup: installing Debian packages: ${need_apt[*]}"
@@ -23,7 +24,7 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
 fi
 
-# The emulated board the firmware is tested on (QEMU's mps2-an386); without its recommended
+# The emulated boards the firmware is tested on (QEMU's mps2-an386 and mps2-an500); without its recommended
 # packages (GUI, firmware images for other machines), which the tests do not need.
 if ! dpkg -s qemu-system-arm >/dev/null 2>&1; then
   echo "setup: installing Debian package qemu-system-arm"

@@ -33,7 +33,7 @@ use evcal_firmware::{
 
 /// Runs the firmware; `true` if it ended cleanly (the protocol runs until reset).
 pub fn run<B: Board>(mut board: B) -> bool {
-    #[cfg(not(feature = "board-stm32f405"))]
+    #[cfg(emulated)]
     {
         let mut buf = [0u8; crate::hostfs::CMDLINE_MAX];
         let cmd = crate::hostfs::cmdline(&mut buf);
@@ -88,7 +88,7 @@ fn bring_up<P: OutputPin, I: I2c>(reset: P, bus: I) -> Option<AddressSet> {
 
 /// Emulator only (`-append sensor`): the sensor's bring-up, its answer on standard output
 /// (`sensor bus: ADDR ...` in hex, or `sensor bus: none`); `true` if it ran.
-#[cfg(not(feature = "board-stm32f405"))]
+#[cfg(emulated)]
 fn report_sensor<B: Board>(board: &mut B) -> bool {
     use core::fmt::Write;
     let Some(found) = bring_up_sensor(board) else {
@@ -146,7 +146,7 @@ fn protocol<B: Board>(board: &mut B, mut local: Option<impl EventSource>) -> boo
     // How many devices answer on the sensor's bus (`None`: its lines could not be driven).
     let answering = bring_up_sensor(board).map(|found| found.len());
     log_info!("sensor bus: devices answering: {}", answering);
-    log_info!("protocol over the UART: {=usize} events per window at most", evcal_core::config::MAX_EVENTS_PER_WINDOW);
+    log_info!("protocol over the UART: {=usize} events per window at most", evcal_firmware::boards::EVENTS_PER_WINDOW);
     let ticks = board.clock();
     let (serial, led) = board.io();
     let mut clock = MarkedClock::new(ticks, led);

@@ -8,6 +8,7 @@
 //! * [`source`]: the event-source trait every input implements (the emulator's bulk file, a
 //!   sensor's EVT byte stream; UART replay arrives through the wire protocol's device loop),
 //!   and [`source::SliceSource`] for tests.
+//! * [`boards`]: each kind of board's capacity (events per window), and the one built for.
 //! * [`bulk`]: the bulk replay format, 8 bytes per event, read by the emulator-only
 //!   semihosting source so that CI can replay hundreds of windows faster than QEMU's UART
 //!   (about 14 KB/s) carries them.
@@ -23,6 +24,7 @@
 #![deny(unsafe_code)]
 #![deny(missing_docs)]
 
+pub mod boards;
 pub mod bulk;
 pub mod evt;
 pub mod paced;

@@ -1,16 +1,20 @@
-//! The evcal firmware: the detection core on a Cortex-M4F beside the event camera.
+//! The evcal firmware: the detection core on a Cortex-M4F or Cortex-M7 beside the event
+//! camera.
 //!
-//! Built for `thumbv7em-none-eabihf` with `cargo fw`; `cargo fw-run` boots it in QEMU. On
-//! the host this file is a stub that says so (the workspace builds every member there).
+//! Built for `thumbv7em-none-eabihf` with `cargo fw` (the Cortex-M4F boards) or
+//! `scripts/firmware-build.sh m7|stm32h743` (the Cortex-M7 boards); `cargo fw-run` boots the
+//! M4F image in QEMU. On the host this file is a stub that says so (the workspace builds
+//! every member there).
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 
 #[cfg(not(target_os = "none"))]
 fn main() {
     eprintln!(
-        "evcal-firmware runs on a Cortex-M4F: build it with `cargo fw` \
+        "evcal-firmware runs on a Cortex-M4F or Cortex-M7: build it with `cargo fw` \
          (cargo build -p evcal-firmware --target thumbv7em-none-eabihf --profile firmware) \
-         and boot it in QEMU with `cargo fw-run`"
+         and boot it in QEMU with `cargo fw-run`; the Cortex-M7 images with \
+         `bash scripts/firmware-build.sh m7|stm32h743`"
     );
     std::process::exit(2);
 }
@@ -30,24 +34,24 @@ macro_rules! log_info {
     }};
 }
 
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod bench;
 #[cfg(target_os = "none")]
 mod board;
 #[cfg(target_os = "none")]
 mod device;
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod hostfs;
 #[cfg(target_os = "none")]
 mod markers;
 #[cfg(target_os = "none")]
 mod role;
-#[cfg(all(target_os = "none", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", emulated))]
 mod stack;
 
-#[cfg(all(target_os = "none", feature = "defmt", feature = "board-stm32f405"))]
+#[cfg(all(target_os = "none", feature = "defmt", not(emulated)))]
 use defmt_rtt as _;
-#[cfg(all(target_os = "none", feature = "defmt", not(feature = "board-stm32f405")))]
+#[cfg(all(target_os = "none", feature = "defmt", emulated))]
 use defmt_semihosting as _;
 
 #[cfg(target_os = "none")]

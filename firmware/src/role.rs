@@ -4,11 +4,16 @@
 
 use crate::board;
 use evcal_core::{
+    config::MAX_CLUSTERS,
     detect::DetectConfig,
     event::SensorSize,
-    wire::{Device, DeviceOptions},
+    wire::{
+        device::{RX_FRAME, TX_FRAME},
+        Device, DeviceOptions,
+    },
 };
-#[cfg(not(feature = "board-stm32f405"))]
+use evcal_firmware::boards::EVENTS_PER_WINDOW;
+#[cfg(emulated)]
 use evcal_firmware::runner::FwDetector;
 use static_cell::StaticCell;
 
@@ -20,15 +25,17 @@ const BOOT_CONFIG: DetectConfig = DetectConfig::for_sensor(SensorSize::DAVIS346)
 /// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
 const OPTIONS: DeviceOptions = DeviceOptions { window: 2, stats_every: 16, clock_hz: board::CLOCK_HZ };
 
-/// The protocol's device with the core's default capacities and buffers.
-pub type FwDevice = Device;
+/// The protocol's device: the board's window (`boards::EVENTS_PER_WINDOW`), the core's
+/// clusters and buffers.
+pub type FwDevice = Device<EVENTS_PER_WINDOW, MAX_CLUSTERS, RX_FRAME, TX_FRAME>;
 
-/// What the big static memory holds: one detector's worth (some 100 KB of window buffer,
-/// clusterer and scratch for the host's 8000-event windows), used by whichever mode runs.
+/// What the big static memory holds: one detector's worth (window buffer, clusterer and
+/// scratch: some 100 KB for the M4F's 8000-event windows, 400 KB for the M7's 32 000), used
+/// by whichever mode runs.
 #[allow(clippy::large_enum_variant)] // the variants share one memory on purpose
 enum Role {
     Protocol(FwDevice),
-    #[cfg(not(feature = "board-stm32f405"))]
+    #[cfg(emulated)]
     Bench(FwDetector),
 }
 
@@ -36,7 +43,7 @@ enum Role {
 // it from flash; building the value at run time would put a temporary of the same size on
 // the stack first (measured: a 37 KB stack peak), RAM the budget would have to hold too.
 const PROTOCOL_IMAGE: Role = Role::Protocol(FwDevice::new(BOOT_CONFIG, OPTIONS));
-#[cfg(not(feature = "board-stm32f405"))]
+#[cfg(emulated)]
 const BENCH_IMAGE: Role = Role::Bench(FwDetector::new(BOOT_CONFIG));
 
 static ROLE: StaticCell<Role> = StaticCell::new();
@@ -49,7 +56,7 @@ fn role(image: Role) -> Option<&'static mut Role> {
 }
 
 /// The detector for the benchmark, configured with `cfg`; `None` if the memory is taken.
-#[cfg(not(feature = "board-stm32f405"))]
+#[cfg(emulated)]
 pub fn bench_detector(cfg: DetectConfig) -> Option<&'static mut FwDetector> {
     match role(BENCH_IMAGE)? {
         Role::Bench(d) => {
@@ -64,7 +71,7 @@ pub fn bench_detector(cfg: DetectConfig) -> Option<&'static mut FwDetector> {
 pub fn protocol_device() -> Option<&'static mut FwDevice> {
     match role(PROTOCOL_IMAGE)? {
         Role::Protocol(d) => Some(d),
-        #[cfg(not(feature = "board-stm32f405"))]
+        #[cfg(emulated)]
         Role::Bench(_) => None,
     }
 }

@@ -2,9 +2,12 @@
 //! processing timed by the board's clock (whose window hooks call the benchmark markers,
 //! see [`evcal_core::detect::Clock`]).
 
-use crate::source::{EventSource, SourceError};
+use crate::{
+    boards::EVENTS_PER_WINDOW,
+    source::{EventSource, SourceError},
+};
 use evcal_core::{
-    config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
+    config::MAX_CLUSTERS,
     detect::{Clock, Detection, Detector},
     event::Event,
 };
@@ -13,8 +16,8 @@ use evcal_core::{
 /// small enough to sit on the stack (16 bytes each).
 pub const READ_BATCH: usize = 64;
 
-/// The firmware's detector: the core's default capacities.
-pub type FwDetector = Detector<MAX_EVENTS_PER_WINDOW, MAX_CLUSTERS>;
+/// The firmware's detector: the board's window ([`EVENTS_PER_WINDOW`]), the core's clusters.
+pub type FwDetector = Detector<EVENTS_PER_WINDOW, MAX_CLUSTERS>;
 
 /// Feeds events to a detector and processes each window as it completes.
 pub struct Runner<'d, K, const N: usize, const C: usize> {

@@ -10,7 +10,7 @@
 //! `bench-summary: board=B sensor=S light=L events_per_window=N windows=W identical=I
 //! mean_instr=X max_instr=Y budget_instr=Z static_ram=R stack_peak=K flash=F`
 //!
-//! Options: `--board m4f` (the boards built: see [`Board`]), `--sensor davis346|genx320|
+//! Options: `--board m4f|m7` (the boards built: see [`Board`]), `--sensor davis346|genx320|
 //! dvxplorer|imx636` (davis346), `--light good|low`, `--seconds S` (3.5), `--step-ms MS`
 //! (33.333), `--events N` (the host's default window for the sensor), `--plugin LIB` (no
 //! exact counts without it), `--cpi X` and `--mhz F` (the board's), `--dir DIR`
@@ -26,14 +26,10 @@ use evcal_host::{
     sim::{Camera, Light, SimConfig, Trajectory},
 };
 use evcal_tests::{
-    firmware::{self, BenchRun, Counter},
+    firmware::{self, BenchRun, Counter, Emulated},
     link,
 };
 use std::path::PathBuf;
-
-/// SysTick ticks once every this many instructions on QEMU's mps2-an386 under
-/// `-icount shift=0` (1 ns per instruction, 25 MHz system clock).
-const INSNS_PER_TICK: f64 = 40.0;
 
 /// A board the firmware is built for, as the benchmark sees it.
 struct Board {
@@ -41,6 +37,8 @@ struct Board {
     name: &'static str,
     /// What QEMU emulates and what real part it stands for.
     title: &'static str,
+    /// The emulated board the image is built for and booted on.
+    emulated: Emulated,
     /// Core clock of the real part, MHz, and its cycles per instruction as the docs state
     /// them (docs/firmware.md, "Performance").
     mhz: f64,
@@ -48,19 +46,32 @@ struct Board {
     /// Most instructions a window may take: 33.3 ms at the clock and CPI, rounded down as
     /// CI holds it.
     budget: u64,
-    /// Most events a window holds on it (the firmware's capacity for the board).
-    capacity: usize,
+    /// What the real part's memory is, for the report (the linker enforces it).
+    memory: &'static str,
 }
 
-/// The boards built. The Cortex-M4F: QEMU's mps2-an386 standing for an STM32F405.
-const BOARDS: [Board; 1] = [Board {
-    name: "m4f",
-    title: "QEMU mps2-an386, Cortex-M4F, standing for an STM32F405 at 168 MHz",
-    mhz: 168.0,
-    cpi: 1.25,
-    budget: firmware::M4F_INSTRUCTIONS_PER_WINDOW,
-    capacity: evcal_core::config::MAX_EVENTS_PER_WINDOW,
-}];
+/// The boards built. The Cortex-M4F: QEMU's mps2-an386 standing for an STM32F405; the
+/// Cortex-M7: QEMU's mps2-an500 standing for an STM32H743.
+const BOARDS: [Board; 2] = [
+    Board {
+        name: "m4f",
+        title: "QEMU mps2-an386, Cortex-M4F, standing for an STM32F405 at 168 MHz",
+        emulated: Emulated::M4f,
+        mhz: 168.0,
+        cpi: 1.25,
+        budget: firmware::M4F_INSTRUCTIONS_PER_WINDOW,
+        memory: "flash 512 KiB, SRAM 128 KiB for the statics, CCM 64 KiB for the stack",
+    },
+    Board {
+        name: "m7",
+        title: "QEMU mps2-an500, Cortex-M7, standing for an STM32H743 at 480 MHz",
+        emulated: Emulated::M7,
+        mhz: 480.0,
+        cpi: 1.0,
+        budget: firmware::M7_INSTRUCTIONS_PER_WINDOW,
+        memory: "flash 2 MiB, AXI SRAM 512 KiB for the statics, DTCM 128 KiB for the stack",
+    },
+];
 
 struct Opts {
     board: &'static Board,
@@ -163,7 +174,7 @@ fn m(x: f64) -> String {
 fn main() -> Result<()> {
     let o = opts()?;
     std::fs::create_dir_all(&o.dir)?;
-    let elf = firmware::build_firmware()?;
+    let elf = firmware::build_firmware_for(o.board.emulated)?;
 
     let sim_cfg = SimConfig::preset(o.sensor, "4x11", Trajectory::Cone, o.light, 11).context("preset")?;
     let sensor = SensorSize { width: sim_cfg.camera.width, height: sim_cfg.camera.height };
@@ -172,11 +183,11 @@ fn main() -> Result<()> {
         o.events = ring_events_per_window(sensor);
     }
     ensure!(
-        o.events <= o.board.capacity,
+        o.events <= o.board.emulated.capacity(),
         "the {} board holds {} events per window; {} needs {} (the host's window for it): a board that holds it is \
          needed",
         o.board.name,
-        o.board.capacity,
+        o.board.emulated.capacity(),
         o.sensor,
         o.events
     );
@@ -312,11 +323,12 @@ fn main() -> Result<()> {
             );
         }
     }
-    let cl: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].cluster_ticks) * INSNS_PER_TICK).collect();
-    let fi: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].fit_ticks) * INSNS_PER_TICK).collect();
+    let per_tick = o.board.emulated.insns_per_tick();
+    let cl: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].cluster_ticks) * per_tick).collect();
+    let fi: Vec<f64> = full.iter().map(|&i| f64::from(run.windows[i].fit_ticks) * per_tick).collect();
     let (cl, fi) = (summary(&cl), summary(&fi));
     println!(
-        "per stage (SysTick x {INSNS_PER_TICK} instructions/tick): clustering mean {} max {}; fitting mean {} max {}",
+        "per stage (SysTick x {per_tick} instructions/tick): clustering mean {} max {}; fitting mean {} max {}",
         m(cl.mean),
         m(cl.max),
         m(fi.mean),
@@ -334,7 +346,7 @@ fn main() -> Result<()> {
         elf_size.bss,
         run.num("stack_peak")?
     );
-    println!("budget: flash 512 KiB, SRAM 128 KiB for the statics, CCM 64 KiB for the stack (linker-enforced)");
+    println!("budget: {} (linker-enforced)", o.board.memory);
     println!("qemu wall time: {qemu_s:.1} s for {events_fed} events");
     if o.profile > 0 {
         let all: u64 = run.profile.iter().map(|(_, n)| n).sum();

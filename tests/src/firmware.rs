@@ -22,11 +22,15 @@ pub const TARGET: &str = "thumbv7em-none-eabihf";
 /// The cargo profile the firmware is built with (`cargo fw`).
 pub const PROFILE: &str = "firmware";
 
-/// Most instructions one window (4000 events) may take on the emulated board (QEMU
+/// Most instructions one window (8000 events) may take on the emulated board (QEMU
 /// `mps2-an386`, a Cortex-M4F), between the benchmark markers: 33 ms, a window's share of
 /// real time at 30 windows a second, at 168 MHz (the STM32F405's clock) and 1.25 cycles per
 /// instruction is 4.435 M; docs/firmware.md's target rounds it down.
 pub const M4F_INSTRUCTIONS_PER_WINDOW: u64 = 4_400_000;
+
+/// Most instructions one window may take on the emulated Cortex-M7 (QEMU `mps2-an500`),
+/// standing for an STM32H743: 33.3 ms at 480 MHz and 1.0 cycle per instruction is 16.0 M.
+pub const M7_INSTRUCTIONS_PER_WINDOW: u64 = 16_000_000;
 
 /// The instruction-counting QEMU plugin (`firmware/tools/insn_count.c`), built with `gcc`
 /// into the target directory when missing or older than its source; returns its path.
@@ -58,21 +62,85 @@ pub fn target_dir() -> PathBuf {
     std::env::var_os("CARGO_TARGET_DIR").map(PathBuf::from).unwrap_or_else(|| workspace_root().join("target"))
 }
 
-/// The firmware image `cargo fw` builds.
-pub fn elf_path() -> PathBuf {
-    target_dir().join(TARGET).join(PROFILE).join("evcal-firmware")
+/// An emulated board the firmware is built for and booted on (`scripts/qemu-run.sh` picks
+/// the QEMU machine from the image's CPU).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Emulated {
+    /// QEMU `mps2-an386`, a Cortex-M4F, standing for an STM32F405: the default image.
+    M4f,
+    /// QEMU `mps2-an500`, a Cortex-M7, standing for an STM32H743 (feature `board-mps2-an500`,
+    /// built with `-C target-cpu=cortex-m7` in a target directory of its own).
+    M7,
 }
 
-/// Builds the firmware image (`cargo fw`; quick when it is up to date) and returns its path.
+impl Emulated {
+    /// Most events a window holds on the board (the firmware's capacity for it).
+    pub const fn capacity(self) -> usize {
+        match self {
+            Self::M4f => evcal_firmware::boards::M4F_EVENTS_PER_WINDOW,
+            Self::M7 => evcal_firmware::boards::M7_EVENTS_PER_WINDOW,
+        }
+    }
+
+    /// Instructions per SysTick tick under `-icount shift=0` (1 ns per instruction): the
+    /// board's system clock is 25 MHz on both machines (QEMU's `mps2.c`), measured against the
+    /// counting plugin.
+    pub const fn insns_per_tick(self) -> f64 {
+        match self {
+            Self::M4f | Self::M7 => 40.0,
+        }
+    }
+
+    /// The target directory the board's image is built in: the M7's has its own, as its
+    /// flags differ (`-C target-cpu=cortex-m7`), so that building one board's image does not
+    /// rebuild the other's dependencies.
+    fn target_dir(self) -> PathBuf {
+        match self {
+            Self::M4f => target_dir(),
+            Self::M7 => target_dir().join("m7"),
+        }
+    }
+
+    /// The board's firmware image (where [`build_firmware_for`] puts it).
+    pub fn elf_path(self) -> PathBuf {
+        self.target_dir().join(TARGET).join(PROFILE).join("evcal-firmware")
+    }
+}
+
+/// The firmware image `cargo fw` builds (the Cortex-M4F's).
+pub fn elf_path() -> PathBuf {
+    Emulated::M4f.elf_path()
+}
+
+/// Builds the firmware image for the emulated Cortex-M4F (`cargo fw`; quick when it is up
+/// to date) and returns its path.
 pub fn build_firmware() -> Result<PathBuf> {
+    build_firmware_for(Emulated::M4f)
+}
+
+/// Builds the firmware image for `board` (as `scripts/firmware-build.sh` does; quick when
+/// it is up to date) and returns its path.
+pub fn build_firmware_for(board: Emulated) -> Result<PathBuf> {
     let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-    let status = Command::new(cargo)
-        .current_dir(workspace_root())
-        .args(["build", "-q", "-p", "evcal-firmware", "--target", TARGET, "--profile", PROFILE])
-        .status()
-        .context("running cargo to build the firmware")?;
-    ensure!(status.success(), "building the firmware failed ({status})");
-    Ok(elf_path())
+    let mut cmd = Command::new(cargo);
+    cmd.current_dir(workspace_root()).args([
+        "build",
+        "-q",
+        "-p",
+        "evcal-firmware",
+        "--target",
+        TARGET,
+        "--profile",
+        PROFILE,
+    ]);
+    if board == Emulated::M7 {
+        cmd.args(["--features", "board-mps2-an500"])
+            .env("CARGO_TARGET_DIR", board.target_dir())
+            .env("CARGO_TARGET_THUMBV7EM_NONE_EABIHF_RUSTFLAGS", "-C target-cpu=cortex-m7");
+    }
+    let status = cmd.status().context("running cargo to build the firmware")?;
+    ensure!(status.success(), "building the firmware for {board:?} failed ({status})");
+    Ok(board.elf_path())
 }
 
 /// Whether QEMU can be run here; if not, why (what to install).

@@ -1,4 +1,5 @@
-//! The firmware on the emulated board (QEMU mps2-an386, Cortex-M4F), against the host.
+//! The firmware on the emulated boards (QEMU mps2-an386, Cortex-M4F; mps2-an500, Cortex-M7),
+//! against the host.
 //!
 //! These boot the real firmware image, so they need `qemu-system-arm` (scripts/setup.sh
 //! installs it) and the `thumbv7em-none-eabihf` target; they build the image themselves.
@@ -14,7 +15,7 @@ use evcal_host::{
     sim::{Light, SimConfig, Trajectory},
 };
 use evcal_tests::{
-    firmware::{self, Counter},
+    firmware::{self, Counter, Emulated},
     golden,
     link::{self, Damage, Qemu, Tamper},
 };
@@ -380,4 +381,53 @@ fn filled_discs_on_the_device_equal_the_host_core() {
         assert_eq!(s, ws);
         assert!(f == wf, "window {s}: device frame differs from the host's");
     }
+}
+
+/// The emulated Cortex-M7 (QEMU mps2-an500, memory capped to an STM32H743's) in the host's
+/// window for a 640x480 sensor: a short simulated DVXplorer recording (4x11 grid, cone, good
+/// light) from the bulk source through the protocol, the session configured with what
+/// `evcal detect` runs on that sensor (15 000 events a window, more than a Cortex-M4F board
+/// holds); every detection frame is the host's, byte for byte.
+#[test]
+#[ignore = "boots the firmware in QEMU; scripts/test.sh runs it"]
+fn m7_runs_a_640x480_sensor_in_the_hosts_window_equal_to_the_host_core() {
+    if let Some(why) = firmware::qemu_missing() {
+        panic!("{why}");
+    }
+    let elf = firmware::build_firmware_for(Emulated::M7).expect("build the Cortex-M7 firmware");
+    let sim = SimConfig::preset("dvxplorer", "4x11", Trajectory::Cone, Light::Good, 12).unwrap();
+    let sensor = SensorSize { width: sim.camera.width, height: sim.camera.height };
+    let (events, _) = simulate(sim, 0.3);
+    let mut cfg = evcal_host::input::detections::host_config(sensor);
+    // Windows every 10 ms: a window of 15 000 events spans less, so the windower also skips
+    // the events between windows, as it does at the paper's 33 ms.
+    cfg.window.step_us = 10_000;
+    assert_eq!(cfg.window.events, 15_000, "the host's window on a 640x480 sensor");
+    assert!(cfg.window.events > Emulated::M4f.capacity(), "a window no Cortex-M4F board holds");
+    let want = link::expected_frames(&events, cfg).unwrap();
+    assert!(want.len() >= 20, "{} windows", want.len());
+    let bulk = scratch("m7-protocol-replay.bin");
+    firmware::write_bulk(&bulk, sensor, &events).unwrap();
+
+    let t = Instant::now();
+    let append = format!("replay {}", bulk.display());
+    let mut qemu = Qemu::boot(&elf, Some(&append), 300).unwrap();
+    let got = link::replay(&mut qemu, cfg, &[], Tamper::default(), Duration::from_secs(240)).unwrap();
+    eprintln!(
+        "Cortex-M7, bulk source: {} events, {} windows in {:.1} s",
+        events.len(),
+        got.detections.len(),
+        t.elapsed().as_secs_f64()
+    );
+    let boot = got.hellos.first().expect("the device's boot Hello");
+    assert_eq!(boot.max_events as usize, Emulated::M7.capacity(), "the M7's capacity: {boot:?}");
+    assert_eq!(got.detections.len(), want.len(), "windows received");
+    for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
+        assert_eq!(s, ws);
+        assert!(f == wf, "window {s}: device frame differs from the host's");
+    }
+    let st = got.final_stats.unwrap();
+    assert_eq!(st.events_received, events.len() as u64);
+    assert_eq!(st.windows as usize, want.len());
+    assert_eq!(st.frames_bad, 0);
 }

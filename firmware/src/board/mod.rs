@@ -5,18 +5,25 @@
 //! status LED and a sensor's reset line (`embedded_hal::digital::OutputPin`), a sensor's
 //! control bus (`embedded_hal::i2c::I2c`), a free-running core-clock tick counter for
 //! per-stage timing, a way to report a fatal error, and a way to end the program. The board
-//! is chosen at build time: the emulated `mps2-an386` (its drivers hand-written, minimal) by
-//! default, a real STM32F405/407 (on `stm32f4xx-hal`) with the `board-stm32f405` feature.
+//! is chosen at build time: QEMU's `mps2-an386` (Cortex-M4F; its drivers hand-written,
+//! minimal) by default, `mps2-an500` (Cortex-M7, the same drivers) with `board-mps2-an500`, a
+//! real STM32F405/407 (on `stm32f4xx-hal`) with `board-stm32f405`, a real STM32H743 (on
+//! `embassy-stm32`) with `board-stm32h743`.
 
-#[cfg(not(feature = "board-stm32f405"))]
-mod mps2_an386;
-#[cfg(not(feature = "board-stm32f405"))]
-pub use mps2_an386::{exit, init, on_interrupt, report, CLOCK_HZ};
+#[cfg(emulated)]
+mod mps2;
+#[cfg(emulated)]
+pub use mps2::{exit, init, on_interrupt, report, CLOCK_HZ};
 
 #[cfg(feature = "board-stm32f405")]
 mod stm32f405;
 #[cfg(feature = "board-stm32f405")]
 pub use stm32f405::{exit, init, on_interrupt, report, CLOCK_HZ};
+
+#[cfg(feature = "board-stm32h743")]
+mod stm32h743;
+#[cfg(feature = "board-stm32h743")]
+pub use stm32h743::{exit, init, on_interrupt, report, CLOCK_HZ};
 
 mod systick;
 pub use systick::SysTickClock;

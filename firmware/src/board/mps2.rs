@@ -1,11 +1,13 @@
-//! QEMU's `mps2-an386`: Cortex-M4 with FPU, UART0 a CMSDK APB UART at 0x4000_4000, the
-//! FPGA's user LEDs, a CMSDK GPIO and SBCon I2C on the shield header. Each has a minimal
-//! hand-written driver here behind the embedded-hal traits the firmware is written against.
+//! QEMU's mps2 boards: `mps2-an386` (Cortex-M4 with FPU, the default) and `mps2-an500`
+//! (Cortex-M7, feature `board-mps2-an500`), which QEMU models alike: UART0 a CMSDK APB UART
+//! at 0x4000_4000, the FPGA's user LEDs, a CMSDK GPIO and SBCon I2C on the shield header. Each
+//! has a minimal hand-written driver here behind the embedded-hal traits the firmware is
+//! written against.
 //!
 //! Run with `-icount shift=0`: each instruction then takes 1 ns of virtual time, and SysTick,
-//! on the 25 MHz system clock, ticks once every 40 instructions, deterministically.
-//! Semihosting (`-semihosting-config enable=on,target=native`) carries diagnostics, the exit
-//! code and, for fast replays, host files.
+//! on the system clock ([`CLOCK_HZ`]), ticks once every `1e9 / CLOCK_HZ` instructions,
+//! deterministically. Semihosting (`-semihosting-config enable=on,target=native`) carries
+//! diagnostics, the exit code and, for fast replays, host files.
 
 use super::{Board, SysTickClock, WaitForByte};
 use core::convert::Infallible;
@@ -30,7 +32,7 @@ const CTRL_ON: u32 = 0b11;
 /// CTRL: receive interrupt enable.
 const CTRL_RX_IRQ: u32 = 1 << 3;
 
-/// UART0's receive interrupt on the an386's NVIC (QEMU's `mps2.c`: RX 0, TX 1).
+/// UART0's receive interrupt on the mps2 boards' NVIC (QEMU's `mps2.c`: RX 0, TX 1).
 #[derive(Clone, Copy)]
 struct Uart0Rx;
 
@@ -43,8 +45,12 @@ unsafe impl cortex_m::interrupt::InterruptNumber for Uart0Rx {
 
 const UART0: usize = 0x4000_4000;
 
-/// QEMU's mps2 boards: a 25 MHz system clock (SysTick ticks every 40 instructions under
+/// QEMU's mps2-an386: a 25 MHz system clock (SysTick ticks every 40 instructions under
 /// `-icount shift=0`).
+#[cfg(not(feature = "board-mps2-an500"))]
+pub const CLOCK_HZ: u32 = 25_000_000;
+/// QEMU's mps2-an500: its system clock (QEMU's `mps2.c`), what SysTick counts.
+#[cfg(feature = "board-mps2-an500")]
 pub const CLOCK_HZ: u32 = 25_000_000;
 
 /// The CMSDK APB UART.
