@@ -106,9 +106,9 @@ impl Clock for () {
 /// caller: kept in the [`Detector`] (so in its `static` on the device, where the linker
 /// counts it) instead of on the stack while a window is processed. Nothing in it outlives a
 /// window, and nothing in it outlives its stage: the clustering's column tables are done
-/// with before the first fit, so the fits' events take the same memory (6 KiB of the
-/// device's static RAM saved, the architecture's 64 KiB kept). Each stage clears what it
-/// uses first, so no result depends on what the other left.
+/// with before the first fit, so the fits' events take the same memory (all of it but 64 B;
+/// 6 KiB of the device's static RAM saved, the architecture's 64 KiB kept). Each stage
+/// clears what it uses first, so no result depends on what the other left.
 #[derive(Debug, Clone)]
 pub struct Scratch {
     /// The clustering's sort buckets and column tables ([`ColumnTables`], `u16`), then the
