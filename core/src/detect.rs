@@ -430,9 +430,7 @@ fn join_crescents<const N: usize, const C: usize>(
     extents.clear();
     for r in clusterer.group(events) {
         let part = slice(events, r);
-        let mut x = Extent::EMPTY;
-        x.add_all(part);
-        let m = Moments::of(part, t_ref);
+        let (m, x) = Moments::of_with_extent(part, t_ref);
         let _ = boxes.push([x.x_lo, x.y_lo, x.x_hi, x.y_hi]);
         let _ = sums.push(m);
         let _ = extents.push(x);

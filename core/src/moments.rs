@@ -16,6 +16,7 @@
 //! to a few parts in a million over the few tens of pixels a circle spans.
 
 use crate::{
+    fit::Extent,
     math::{max, sqrt_exact},
     window::WindowEvent,
 };
@@ -157,6 +158,23 @@ impl Moments {
     /// The power sums of `events` about the first event, with τ in milliseconds since
     /// `t0_us` (the same clock as the events' `dt_us`). Empty: all zero.
     pub fn of(events: &[WindowEvent], t0_us: u32) -> Self {
+        let mut unused = Extent::EMPTY;
+        Self::sums::<false>(events, t0_us, &mut unused)
+    }
+
+    /// [`of`](Self::of), the same bits, and the events' [`Extent`]: its integer bounds and
+    /// sums ride in the core registers of the loops, whose sums are all in the FPU's (8000-event
+    /// windows on the M4F: 0.19 M instructions a window less than a pass of its own).
+    #[inline(never)]
+    pub(crate) fn of_with_extent(events: &[WindowEvent], t0_us: u32) -> (Self, Extent) {
+        let mut x = Extent::EMPTY;
+        let m = Self::sums::<true>(events, t0_us, &mut x);
+        x.count(events.len());
+        (m, x)
+    }
+
+    #[inline(always)]
+    fn sums<const EXTENT: bool>(events: &[WindowEvent], t0_us: u32, extent: &mut Extent) -> Self {
         let origin = events.first().map_or([0.0; 2], |e| [f32::from(e.x), f32::from(e.y)]);
         let mut sums = [0.0f32; 31];
         // Two loops over the events, each sum added in event order as in one: 31 sums and
@@ -164,6 +182,9 @@ impl Moments {
         // more than reading the events twice.
         let mut space_sums = [0.0f32; 15];
         for e in events {
+            if EXTENT {
+                extent.add_pixel(e.x, e.y);
+            }
             let x = f32::from(e.x) - origin[0];
             let y = f32::from(e.y) - origin[1];
             let (x2, y2, xy) = (x * x, y * y, x * y);
@@ -175,6 +196,9 @@ impl Moments {
         }
         let mut time_sums = [0.0f32; 16];
         for e in events {
+            if EXTENT {
+                extent.add_time(e.dt_us);
+            }
             let x = f32::from(e.x) - origin[0];
             let y = f32::from(e.y) - origin[1];
             let t = (e.dt_us as f32 - t0_us as f32) * 1e-3;
