@@ -180,19 +180,30 @@ impl Moments {
         // Two loops over the events, each sum added in event order as in one: 31 sums and
         // the terms do not fit the M4F's 32 float registers together, and spilling them cost
         // more than reading the events twice.
+        // The count is exact in `f32` (fewer than 2²⁴ events), as the sum of ones was, and
+        // the bounds are kept as words, not halfwords (the M4F narrowed them at every event).
         let mut space_sums = [0.0f32; 15];
+        let (mut x_lo, mut x_hi, mut y_lo, mut y_hi) = (u32::MAX, 0u32, u32::MAX, 0u32);
         for e in events {
             if EXTENT {
-                extent.add_pixel(e.x, e.y);
+                let (ex, ey) = (u32::from(e.x), u32::from(e.y));
+                x_lo = x_lo.min(ex);
+                x_hi = x_hi.max(ex);
+                y_lo = y_lo.min(ey);
+                y_hi = y_hi.max(ey);
             }
             let x = f32::from(e.x) - origin[0];
             let y = f32::from(e.y) - origin[1];
             let (x2, y2, xy) = (x * x, y * y, x * y);
-            let space =
-                [1.0, x, y, x2, xy, y2, x2 * x, x2 * y, x * y2, y2 * y, x2 * x2, x2 * xy, x2 * y2, xy * y2, y2 * y2];
-            for (s, p) in space_sums.iter_mut().zip(space) {
+            let space = [x, y, x2, xy, y2, x2 * x, x2 * y, x * y2, y2 * y, x2 * x2, x2 * xy, x2 * y2, xy * y2, y2 * y2];
+            for (s, p) in space_sums[1..].iter_mut().zip(space) {
                 *s += p;
             }
+        }
+        space_sums[0] = events.len() as f32;
+        if EXTENT && !events.is_empty() {
+            extent.add_pixel(x_lo as u16, y_lo as u16);
+            extent.add_pixel(x_hi as u16, y_hi as u16);
         }
         let mut time_sums = [0.0f32; 16];
         for e in events {
