@@ -138,9 +138,9 @@ impl Clock for () {
 /// caller: kept in the [`Detector`] (so in its `static` on the device, where the linker
 /// counts it) instead of on the stack while a window is processed. Nothing in it outlives a
 /// window, and nothing in it outlives its stage: the clustering's column tables are done
-/// with before the first fit, so the fits' events take the same memory (6 KiB of the
-/// device's static RAM saved, the architecture's 64 KiB kept). Each stage clears what it
-/// uses first, so no result depends on what the other left.
+/// with before the first fit, so the fits' events take the same memory (all of it but 64 B;
+/// 6 KiB of the device's static RAM saved, the architecture's 64 KiB kept). Each stage
+/// clears what it uses first, so no result depends on what the other left.
 #[derive(Debug, Clone)]
 pub struct Scratch {
     /// The clustering's sort buckets and column tables ([`ColumnTables`], `u16`), then the
@@ -471,9 +471,7 @@ fn join_crescents<const N: usize, const C: usize>(
     extents.clear();
     for r in clusterer.group(events) {
         let part = slice(events, r);
-        let mut x = Extent::EMPTY;
-        x.add_all(part);
-        let m = Moments::of(part, t_ref);
+        let (m, x) = Moments::of_with_extent(part, t_ref);
         let _ = boxes.push([x.x_lo, x.y_lo, x.x_hi, x.y_hi]);
         let _ = sums.push(m);
         let _ = extents.push(x);

@@ -37,6 +37,31 @@ impl Extent {
         self.t_sum += u64::from(e.dt_us);
     }
 
+    /// Takes in one event's pixel: with [`add_time`](Self::add_time) and
+    /// [`count`](Self::count), the same as [`add`](Self::add), for a loop that reads only
+    /// the pixels (see [`Moments::of_with_extent`](crate::moments::Moments::of_with_extent)).
+    #[inline(always)]
+    pub(crate) fn add_pixel(&mut self, x: u16, y: u16) {
+        self.x_lo = self.x_lo.min(x);
+        self.x_hi = self.x_hi.max(x);
+        self.y_lo = self.y_lo.min(y);
+        self.y_hi = self.y_hi.max(y);
+    }
+
+    /// Takes in one event's time (see [`add_pixel`](Self::add_pixel)).
+    #[inline(always)]
+    pub(crate) fn add_time(&mut self, dt_us: u32) {
+        self.t_lo = self.t_lo.min(dt_us);
+        self.t_hi = self.t_hi.max(dt_us);
+        self.t_sum += u64::from(dt_us);
+    }
+
+    /// Counts `n` events taken in by [`add_pixel`](Self::add_pixel) and
+    /// [`add_time`](Self::add_time).
+    pub(crate) fn count(&mut self, n: usize) {
+        self.count = self.count.wrapping_add(n as u32);
+    }
+
     /// Takes in `events` (fewer than 2³² in all).
     pub(crate) fn add_all(&mut self, events: &[WindowEvent]) {
         for e in events {
