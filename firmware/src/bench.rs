@@ -126,6 +126,47 @@ fn device_us_scale(mhz: u64, cpi_percent: u64) -> u64 {
     (((1u128 << 32) * 10_000_000 * u128::from(cpi_percent)) / u128::from(den)).min(u128::from(u64::MAX)) as u64
 }
 
+/// The paced run of [`run`]: `src` through a [`PacedSource`] on the device's clock (`ticks`
+/// at `scale`, see [`device_us_scale`]), its losses and counts written to `out`. Returns how
+/// the source ended and whether every line was written. Out of line, so that its FIFO takes
+/// stack only in a paced run.
+#[inline(never)]
+fn drain_paced<S: EventSource, K: evcal_core::detect::Clock, const N: usize, const C: usize>(
+    runner: &mut Runner<'_, K, N, C>,
+    src: S,
+    ticks: board::SysTickClock,
+    scale: u64,
+    out: &RefCell<HostOut>,
+    on_window: &mut impl FnMut(&Detection<C>),
+) -> (SourceError, bool) {
+    // The tick counter extended past its 32 bits (read often enough: every batch).
+    let (mut last, mut high) = (ticks.now(), 0u64);
+    let now_us = || {
+        let t = ticks.now();
+        if t < last {
+            high += 1 << 32;
+        }
+        last = t;
+        ((u128::from(high | u64::from(t)) * u128::from(scale)) >> 32) as u64
+    };
+    let inner: PacedSource<_, _, FIFO_EVENTS> = PacedSource::new(src, now_us);
+    let mut paced = Logged { inner, out, read: 0, ok: true };
+    let end = runner.drain(&mut paced, on_window);
+    let st = paced.inner.stats();
+    let ok = paced.ok
+        && writeln!(
+            out.borrow_mut(),
+            "P arrived {} lost {} losses {} idle_us {} fifo_peak {}",
+            st.arrived,
+            st.lost,
+            st.losses,
+            st.idle_us,
+            st.fifo_peak
+        )
+        .is_ok();
+    (end, ok)
+}
+
 /// The benchmark replay (see the module's doc).
 pub fn run<B: Board>(board: &mut B, args: &str) -> bool {
     use evcal_firmware::bulk::BulkSource;
@@ -173,31 +214,8 @@ pub fn run<B: Board>(board: &mut B, args: &str) -> bool {
     let end = match pace {
         None => runner.drain(&mut src, &mut on_window),
         Some(scale) => {
-            // The tick counter extended past its 32 bits (read often enough: every batch).
-            let (mut last, mut high) = (ticks.now(), 0u64);
-            let now_us = || {
-                let t = ticks.now();
-                if t < last {
-                    high += 1 << 32;
-                }
-                last = t;
-                ((u128::from(high | u64::from(t)) * u128::from(scale)) >> 32) as u64
-            };
-            let inner: PacedSource<_, _, FIFO_EVENTS> = PacedSource::new(&mut src, now_us);
-            let mut paced = Logged { inner, out: &out, read: 0, ok: true };
-            let end = runner.drain(&mut paced, &mut on_window);
-            let st = paced.inner.stats();
-            write_ok &= paced.ok
-                && writeln!(
-                    out.borrow_mut(),
-                    "P arrived {} lost {} losses {} idle_us {} fifo_peak {}",
-                    st.arrived,
-                    st.lost,
-                    st.losses,
-                    st.idle_us,
-                    st.fifo_peak
-                )
-                .is_ok();
+            let (end, ok) = drain_paced(&mut runner, &mut src, ticks, scale, &out, &mut on_window);
+            write_ok &= ok;
             end
         }
     };
