@@ -288,25 +288,37 @@ fn bulk_source_through_the_protocol_equals_the_host_core() {
     let mut cfg = evcal_host::input::detections::host_config(paper.sensor);
     cfg.window.step_us = paper.window.step_us;
     assert_eq!(cfg.window.events, 8000, "the host's window on a DAVIS346");
-    let want = link::expected_frames(&events, cfg).unwrap();
-    assert!(want.len() >= 100, "{} windows", want.len());
-    let bulk = scratch("protocol-replay.bin");
-    firmware::write_bulk(&bulk, cfg.sensor, &events).unwrap();
+    let (boot, windows) = bulk_replay_through_the_protocol(&elf, &events, cfg, "protocol-replay.bin");
+    assert!(windows >= 100, "{windows} windows");
+    let host = evcal_host::input::detections::host_config(cfg.sensor);
+    assert_eq!(boot.config, host, "the device boots with what `evcal detect` runs");
+    assert!(boot.max_events as usize >= host.window.events, "the device holds the host's window: {boot:?}");
+}
 
+/// Replays `events` from a bulk file (`name` in the scratch folder) into the image `elf`
+/// through the protocol with `cfg`, and checks that every detection frame is the host's byte
+/// for byte and that the device counted every event. Returns the device's boot Hello and the
+/// windows.
+fn bulk_replay_through_the_protocol(
+    elf: &std::path::Path,
+    events: &[Event],
+    cfg: DetectConfig,
+    name: &str,
+) -> (evcal_core::wire::Hello, usize) {
+    let want = link::expected_frames(events, cfg).unwrap();
+    let bulk = scratch(name);
+    firmware::write_bulk(&bulk, cfg.sensor, events).unwrap();
     let t = Instant::now();
     let append = format!("replay {}", bulk.display());
-    let mut qemu = Qemu::boot(&elf, Some(&append), 300).unwrap();
+    let mut qemu = Qemu::boot(elf, Some(&append), 300).unwrap();
     let got = link::replay(&mut qemu, cfg, &[], Tamper::default(), Duration::from_secs(240)).unwrap();
     eprintln!(
-        "bulk source: {} events, {} windows in {:.1} s",
+        "bulk source ({}): {} events, {} windows in {:.1} s",
+        elf.display(),
         events.len(),
         got.detections.len(),
         t.elapsed().as_secs_f64()
     );
-    let boot = got.hellos.first().expect("the device's boot Hello");
-    let host = evcal_host::input::detections::host_config(cfg.sensor);
-    assert_eq!(boot.config, host, "the device boots with what `evcal detect` runs");
-    assert!(boot.max_events as usize >= host.window.events, "the device holds the host's window: {boot:?}");
     assert_eq!(got.detections.len(), want.len(), "windows received");
     for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
         assert_eq!(s, ws);
@@ -316,6 +328,7 @@ fn bulk_source_through_the_protocol_equals_the_host_core() {
     assert_eq!(st.events_received, events.len() as u64);
     assert_eq!(st.windows as usize, want.len());
     assert_eq!(st.frames_bad, 0);
+    (*got.hellos.first().expect("the device's boot Hello"), want.len())
 }
 
 /// Events at the sensor's pace (`-append "bench FILE EVENTS STEP paced 168 125"`: a simulated
@@ -404,30 +417,7 @@ fn m7_runs_a_640x480_sensor_in_the_hosts_window_equal_to_the_host_core() {
     cfg.window.step_us = 10_000;
     assert_eq!(cfg.window.events, 15_000, "the host's window on a 640x480 sensor");
     assert!(cfg.window.events > Emulated::M4f.capacity(), "a window no Cortex-M4F board holds");
-    let want = link::expected_frames(&events, cfg).unwrap();
-    assert!(want.len() >= 20, "{} windows", want.len());
-    let bulk = scratch("m7-protocol-replay.bin");
-    firmware::write_bulk(&bulk, sensor, &events).unwrap();
-
-    let t = Instant::now();
-    let append = format!("replay {}", bulk.display());
-    let mut qemu = Qemu::boot(&elf, Some(&append), 300).unwrap();
-    let got = link::replay(&mut qemu, cfg, &[], Tamper::default(), Duration::from_secs(240)).unwrap();
-    eprintln!(
-        "Cortex-M7, bulk source: {} events, {} windows in {:.1} s",
-        events.len(),
-        got.detections.len(),
-        t.elapsed().as_secs_f64()
-    );
-    let boot = got.hellos.first().expect("the device's boot Hello");
+    let (boot, windows) = bulk_replay_through_the_protocol(&elf, &events, cfg, "m7-protocol-replay.bin");
+    assert!(windows >= 20, "{windows} windows");
     assert_eq!(boot.max_events as usize, Emulated::M7.capacity(), "the M7's capacity: {boot:?}");
-    assert_eq!(got.detections.len(), want.len(), "windows received");
-    for ((s, f), (ws, wf)) in got.detections.iter().zip(&want) {
-        assert_eq!(s, ws);
-        assert!(f == wf, "window {s}: device frame differs from the host's");
-    }
-    let st = got.final_stats.unwrap();
-    assert_eq!(st.events_received, events.len() as u64);
-    assert_eq!(st.windows as usize, want.len());
-    assert_eq!(st.frames_bad, 0);
 }

@@ -18,12 +18,17 @@ pub use mps2::{exit, init, on_interrupt, report, CLOCK_HZ};
 #[cfg(feature = "board-stm32f405")]
 mod stm32f405;
 #[cfg(feature = "board-stm32f405")]
-pub use stm32f405::{exit, init, on_interrupt, report, CLOCK_HZ};
+pub use stm32f405::{init, on_interrupt, CLOCK_HZ};
 
 #[cfg(feature = "board-stm32h743")]
 mod stm32h743;
 #[cfg(feature = "board-stm32h743")]
-pub use stm32h743::{exit, init, on_interrupt, report, CLOCK_HZ};
+pub use stm32h743::{init, on_interrupt, CLOCK_HZ};
+
+#[cfg(not(emulated))]
+mod probe;
+#[cfg(not(emulated))]
+pub use probe::{exit, report};
 
 mod systick;
 pub use systick::SysTickClock;

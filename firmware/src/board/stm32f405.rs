@@ -12,7 +12,7 @@
 //! a window is processed. Bytes lost anyway (a host that ignores it) come back from the HAL
 //! as overrun errors, which the device counts, never silently.
 
-use super::{Board, SysTickClock, WaitForByte};
+use super::{exit, report, Board, SysTickClock, WaitForByte};
 use stm32f4xx_hal::{
     gpio::{Output, PushPull, PB0, PD12},
     i2c::{self, I2c},
@@ -92,22 +92,4 @@ impl WaitForByte for Serial<pac::USART2> {
 /// Interrupts this board handles: none (the USART is polled).
 pub fn on_interrupt(_irqn: i16) -> bool {
     false
-}
-
-/// Halts: a debugger (probe-rs) sees the breakpoint. `ok` is for the debugger's log.
-pub fn exit(ok: bool) -> ! {
-    #[cfg(feature = "defmt")]
-    defmt::info!("evcal firmware stops (ok: {})", ok);
-    let _ = ok;
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
-
-/// Reports a fatal error: over RTT with the `defmt` feature, else nowhere (a real board has
-/// no console of its own; the host sees the link go quiet).
-pub fn report(args: core::fmt::Arguments) {
-    #[cfg(feature = "defmt")]
-    defmt::error!("{}", defmt::Display2Format(&args));
-    let _ = args;
 }

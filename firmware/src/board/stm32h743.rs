@@ -12,7 +12,7 @@
 //! keeps bytes from arriving while a window is processed, and bytes lost anyway come back
 //! from the driver as overrun errors, which the device counts.
 
-use super::{Board, SysTickClock, WaitForByte};
+use super::{exit, Board, SysTickClock, WaitForByte};
 use embassy_stm32::{
     gpio::{Level, Output, Speed},
     i2c::{self, I2c, Master},
@@ -119,22 +119,4 @@ impl WaitForByte for Uart<'static, Blocking> {
 /// peripheral, so none is raised.
 pub fn on_interrupt(_irqn: i16) -> bool {
     false
-}
-
-/// Halts: a debugger (probe-rs) sees the breakpoint. `ok` is for the debugger's log.
-pub fn exit(ok: bool) -> ! {
-    #[cfg(feature = "defmt")]
-    defmt::info!("evcal firmware stops (ok: {})", ok);
-    let _ = ok;
-    loop {
-        cortex_m::asm::bkpt();
-    }
-}
-
-/// Reports a fatal error: over RTT with the `defmt` feature, else nowhere (a real board has
-/// no console of its own; the host sees the link go quiet).
-pub fn report(args: core::fmt::Arguments) {
-    #[cfg(feature = "defmt")]
-    defmt::error!("{}", defmt::Display2Format(&args));
-    let _ = args;
 }
