@@ -8,7 +8,7 @@ use crate::{
     cluster::sort_by_pixel,
     cluster::{
         background_per_neighbourhood, min_pts_above_background, ClusterConfig, ClusterRange, ClusterStats, Clusterer,
-        ColumnTables, TABLE_CELLS,
+        MAX_TABLE_CELLS, TABLE_CELLS,
     },
     config::{
         DEFAULT_EPS, DEFAULT_MAX_ITERATIONS, DEFAULT_MIN_CLUSTER_EVENTS, DEFAULT_MIN_PTS, DEFAULT_STEP_US,
@@ -141,40 +141,53 @@ impl Clock for () {
 /// with before the first fit, so the fits' events take the same memory (all of it but 64 B;
 /// 6 KiB of the device's static RAM saved, the architecture's 64 KiB kept). Each stage
 /// clears what it uses first, so no result depends on what the other left.
+///
+/// `CELLS` cells of `u16` ([`TABLE_CELLS`] by default, 16 KiB): a board with the memory
+/// gives a wide sensor's column tables room (up to [`MAX_TABLE_CELLS`]; a 640x480 sensor's
+/// need some 14 500 cells, a 1280x720 one's some 41 000), and the clustering then sweeps by
+/// tables instead of walking cursors along the rows, to the same result.
 #[derive(Debug, Clone)]
-pub struct Scratch {
-    /// The clustering's sort buckets and column tables ([`ColumnTables`], `u16`), then the
-    /// fits' events in their local frames (see `fit_with`; `[f32; 3]` each), as words.
-    words: [u32; SCRATCH_WORDS],
+#[repr(C, align(4))]
+pub struct Scratch<const CELLS: usize = TABLE_CELLS> {
+    /// The clustering's sort buckets and column tables (`u16`), then the fits' events in
+    /// their local frames (see `fit_with`; `[f32; 3]` each), aligned for those.
+    cells: [u16; CELLS],
 }
 
-/// Words of [`Scratch`]: the column tables' cells, two to a word.
-const SCRATCH_WORDS: usize = TABLE_CELLS / 2;
-const _: () = assert!(2 * SCRATCH_WORDS == TABLE_CELLS && 3 * FIT_SCRATCH_EVENTS <= SCRATCH_WORDS);
+// The fits' events fit in the smallest scratch.
+const _: () = assert!(6 * FIT_SCRATCH_EVENTS <= TABLE_CELLS);
 
-impl Scratch {
+impl<const CELLS: usize> Scratch<CELLS> {
+    const CHECK: () = assert!(
+        CELLS >= TABLE_CELLS && CELLS <= MAX_TABLE_CELLS && CELLS.is_power_of_two(),
+        "a detector's scratch: a power of two from TABLE_CELLS to MAX_TABLE_CELLS cells"
+    );
+
     /// Scratch memory, zeroed.
     pub const fn new() -> Self {
-        Self { words: [0; SCRATCH_WORDS] }
+        #[allow(clippy::let_unit_value)]
+        let () = Self::CHECK;
+        Self { cells: [0; CELLS] }
     }
 
     /// The clustering's column tables.
-    fn tables(&mut self) -> &mut ColumnTables {
-        bytemuck::must_cast_mut(&mut self.words)
+    fn tables(&mut self) -> &mut [u16; CELLS] {
+        &mut self.cells
     }
 
     /// The fits' events, [`FIT_SCRATCH_EVENTS`] of them (in the tables' memory: the
     /// clustering must be done).
     fn fit(&mut self) -> &mut [[f32; 3]] {
-        match self.words.first_chunk_mut::<{ 3 * FIT_SCRATCH_EVENTS }>() {
-            Some(words) => bytemuck::must_cast_mut::<_, [[f32; 3]; FIT_SCRATCH_EVENTS]>(words),
-            // Not reached: the words hold the fits' events (asserted above).
+        // The cells are aligned for `f32` (the struct's `align(4)`) and hold the events
+        // (checked above): the cast does not fail.
+        match self.cells.get_mut(..6 * FIT_SCRATCH_EVENTS) {
+            Some(cells) => bytemuck::try_cast_slice_mut(cells).unwrap_or_default(),
             None => &mut [],
         }
     }
 }
 
-impl Default for Scratch {
+impl<const CELLS: usize> Default for Scratch<CELLS> {
     fn default() -> Self {
         Self::new()
     }
@@ -187,17 +200,18 @@ pub struct Detector<
     const N: usize = MAX_EVENTS_PER_WINDOW,
     const C: usize = MAX_CLUSTERS,
     const H: usize = MAX_HELD_EVENTS,
+    const CELLS: usize = TABLE_CELLS,
 > {
     cfg: DetectConfig,
     filter: InputFilter<H>,
     windower: Windower<N>,
     clusterer: Clusterer<N, C>,
-    scratch: Scratch,
+    scratch: Scratch<CELLS>,
     out: Detection<C>,
     ready: bool,
 }
 
-impl<const N: usize, const C: usize, const H: usize> Detector<N, C, H> {
+impl<const N: usize, const C: usize, const H: usize, const CELLS: usize> Detector<N, C, H, CELLS> {
     /// A detector with the given configuration (events per window clamped to `1..=N`).
     pub const fn new(cfg: DetectConfig) -> Self {
         Self {
@@ -366,9 +380,9 @@ impl<const N: usize, const C: usize, const H: usize> Detector<N, C, H> {
 /// DBSCAN's `min_pts` is first raised by what the window's background (its pixels' noise)
 /// puts in a neighbourhood by chance (`cluster::background`), so that a dim room's noise does
 /// not join the circles.
-pub fn process<const N: usize, const C: usize>(
+pub fn process<const N: usize, const C: usize, const CELLS: usize>(
     clusterer: &mut Clusterer<N, C>,
-    scratch: &mut Scratch,
+    scratch: &mut Scratch<CELLS>,
     events: &mut [WindowEvent],
     cfg: &DetectConfig,
     out: &mut Detection<C>,
@@ -384,9 +398,9 @@ pub fn process<const N: usize, const C: usize>(
 
 /// [`process`] with `cfg.cluster.min_pts` as it is, the background not counted; `t0` is the
 /// clock's reading when the window's processing began.
-fn process_at_threshold<const N: usize, const C: usize>(
+fn process_at_threshold<const N: usize, const C: usize, const CELLS: usize>(
     clusterer: &mut Clusterer<N, C>,
-    scratch: &mut Scratch,
+    scratch: &mut Scratch<CELLS>,
     events: &mut [WindowEvent],
     cfg: &DetectConfig,
     out: &mut Detection<C>,
@@ -849,7 +863,7 @@ mod test {
                 let mut w: Vec<WindowEvent> =
                     ev.iter().map(|e| WindowEvent { x: e.x, y: e.y, dt_us: e.t_us as u32 }).collect();
                 let mut clusterer: Box<Clusterer<8192, 64>> = Box::default();
-                let mut scratch = Box::new(Scratch::new());
+                let mut scratch: Box<Scratch> = Box::default();
                 let info = WindowInfo { seq: 0, t_first_us: 0, t_ref_us: 2000, t_last_us: 4000, ticks_skipped: 0 };
                 let mut out: Box<Detection<64>> =
                     Box::new(Detection { info, stats: WindowStats::default(), centres: heapless::Vec::new() });

@@ -131,8 +131,15 @@ fn device_us_scale(mhz: u64, cpi_percent: u64) -> u64 {
 /// the source ended and whether every line was written. Out of line, so that its FIFO takes
 /// stack only in a paced run.
 #[inline(never)]
-fn drain_paced<S: EventSource, K: evcal_core::detect::Clock, const N: usize, const C: usize>(
-    runner: &mut Runner<'_, K, N, C>,
+fn drain_paced<
+    S: EventSource,
+    K: evcal_core::detect::Clock,
+    const N: usize,
+    const C: usize,
+    const H: usize,
+    const CELLS: usize,
+>(
+    runner: &mut Runner<'_, K, N, C, H, CELLS>,
     src: S,
     ticks: board::SysTickClock,
     scale: u64,

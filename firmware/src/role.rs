@@ -12,7 +12,7 @@ use evcal_core::{
         Device, DeviceOptions,
     },
 };
-use evcal_firmware::boards::EVENTS_PER_WINDOW;
+use evcal_firmware::boards::{EVENTS_PER_WINDOW, TABLE_CELLS};
 #[cfg(emulated)]
 use evcal_firmware::runner::FwDetector;
 use static_cell::StaticCell;
@@ -25,9 +25,9 @@ const BOOT_CONFIG: DetectConfig = DetectConfig::for_sensor(SensorSize::DAVIS346)
 /// the UART or the host), stats every 16 windows, stage times in SysTick ticks.
 const OPTIONS: DeviceOptions = DeviceOptions { window: 2, stats_every: 16, clock_hz: board::CLOCK_HZ };
 
-/// The protocol's device: the board's window (`boards::EVENTS_PER_WINDOW`), the core's
-/// clusters and buffers.
-pub type FwDevice = Device<EVENTS_PER_WINDOW, MAX_CLUSTERS, RX_FRAME, TX_FRAME>;
+/// The protocol's device: the board's window and scratch (`boards::EVENTS_PER_WINDOW`,
+/// `boards::TABLE_CELLS`), the core's clusters and buffers.
+pub type FwDevice = Device<EVENTS_PER_WINDOW, MAX_CLUSTERS, RX_FRAME, TX_FRAME, TABLE_CELLS>;
 
 /// What the big static memory holds: one detector's worth (window buffer, clusterer and
 /// scratch: some 100 KB for the M4F's 8000-event windows, 400 KB for the M7's 32 000), used

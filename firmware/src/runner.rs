@@ -3,34 +3,35 @@
 //! see [`evcal_core::detect::Clock`]).
 
 use crate::{
-    boards::EVENTS_PER_WINDOW,
+    boards::{EVENTS_PER_WINDOW, TABLE_CELLS},
     source::{EventSource, SourceError},
 };
 use evcal_core::{
     config::MAX_CLUSTERS,
     detect::{Clock, Detection, Detector},
-    event::Event,
+    event::{Event, MAX_HELD_EVENTS},
 };
 
 /// Events taken from a source per call: large enough that the call overhead does not show,
 /// small enough to sit on the stack (16 bytes each).
 pub const READ_BATCH: usize = 64;
 
-/// The firmware's detector: the board's window ([`EVENTS_PER_WINDOW`]), the core's clusters.
-pub type FwDetector = Detector<EVENTS_PER_WINDOW, MAX_CLUSTERS>;
+/// The firmware's detector: the board's window ([`EVENTS_PER_WINDOW`]) and scratch
+/// ([`TABLE_CELLS`]), the core's clusters.
+pub type FwDetector = Detector<EVENTS_PER_WINDOW, MAX_CLUSTERS, MAX_HELD_EVENTS, TABLE_CELLS>;
 
 /// Feeds events to a detector and processes each window as it completes.
-pub struct Runner<'d, K, const N: usize, const C: usize> {
-    det: &'d mut Detector<N, C>,
+pub struct Runner<'d, K, const N: usize, const C: usize, const H: usize, const CELLS: usize> {
+    det: &'d mut Detector<N, C, H, CELLS>,
     clock: K,
     events: u64,
     windows: u64,
     lost: u64,
 }
 
-impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
+impl<'d, K: Clock, const N: usize, const C: usize, const H: usize, const CELLS: usize> Runner<'d, K, N, C, H, CELLS> {
     /// A runner over `det`, timing stages with `clock`.
-    pub fn new(det: &'d mut Detector<N, C>, clock: K) -> Self {
+    pub fn new(det: &'d mut Detector<N, C, H, CELLS>, clock: K) -> Self {
         Self { det, clock, events: 0, windows: 0, lost: 0 }
     }
 
@@ -92,7 +93,7 @@ impl<'d, K: Clock, const N: usize, const C: usize> Runner<'d, K, N, C> {
     }
 
     /// The detector (its input statistics, its configuration).
-    pub fn detector(&self) -> &Detector<N, C> {
+    pub fn detector(&self) -> &Detector<N, C, H, CELLS> {
         self.det
     }
 }

@@ -21,7 +21,6 @@
 //! threshold errs towards the configured one. It is a count of this window alone: no
 //! window's result depends on another's.
 
-use super::ColumnTables;
 use crate::event::SensorSize;
 use crate::window::WindowEvent;
 
@@ -38,19 +37,20 @@ pub const BACKGROUND_Z: f64 = 2.0;
 /// cell of the [`BACKGROUND_CELLS`] grid, times the neighbourhood's share of a cell (an ellipse of
 /// semi-axes `eps·W`, `eps·H`: `π·eps²` of the sensor). `cells` is scratch (its first 768
 /// cells are overwritten). 0 for a sensor of no size or an `eps` that is not positive.
-pub fn background_per_neighbourhood(
+pub fn background_per_neighbourhood<const CELLS: usize>(
     events: &[WindowEvent],
     sensor: SensorSize,
     eps: f32,
-    cells: &mut ColumnTables,
+    cells: &mut [u16; CELLS],
 ) -> f64 {
     let [nx, ny] = BACKGROUND_CELLS;
     let (w, h) = (u32::from(sensor.width), u32::from(sensor.height));
     if w == 0 || h == 0 || !(eps.is_finite() && eps > 0.0) {
         return 0.0;
     }
-    let (counts, rest) = cells.split_at_mut(COUNT_SLOTS);
-    let (histogram, luts) = rest.split_at_mut(HISTOGRAM_BINS);
+    // Scratch too small for the counts counts no background (never for the detector's).
+    let Some((counts, rest)) = cells.split_at_mut_checked(COUNT_SLOTS) else { return 0.0 };
+    let Some((histogram, luts)) = rest.split_at_mut_checked(HISTOGRAM_BINS) else { return 0.0 };
     counts.fill(0);
     let (wu, hu) = (w as usize, h as usize);
     // Each column's and row's share of a cell's index, `⌊x·32/W⌋` and `32·⌊y·24/H⌋`, looked

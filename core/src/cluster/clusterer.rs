@@ -4,13 +4,13 @@
 use super::{
     metric::Metric,
     sort::{sort_by_pixel, sort_in_time_by_pixel},
-    ClusterConfig, ClusterRange, ClusterStats, ColumnTables, MAX_REACH_ROWS,
+    ClusterConfig, ClusterRange, ClusterStats, MAX_REACH_ROWS,
 };
 use crate::{event::SensorSize, window::WindowEvent};
 
 /// DBSCAN over at most `N` events per run, keeping at most `C` clusters. All memory is
 /// inline: a label per event and a range per cluster, `2N + 4C` bytes; the events and the
-/// sort's scratch and sweep's tables ([`ColumnTables`], 16 KiB) are the caller's, so that
+/// sort's scratch and sweep's tables ([`ColumnTables`](super::ColumnTables), 16 KiB) are the caller's, so that
 /// they are counted where the caller keeps them (a detector's static storage on the
 /// device) rather than on the stack.
 ///
@@ -57,14 +57,17 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// each event's cluster (0-based), [`NOISE`](super::NOISE) or [`DROPPED`](super::DROPPED).
     ///
     /// `tables` is the caller's scratch for the sort and the column tables of the sweep
-    /// ([`ColumnTables`]): 16 KiB that would otherwise sit on the stack while this runs. Its
-    /// content on entry does not matter.
-    pub fn cluster(
+    /// ([`ColumnTables`](super::ColumnTables), 16 KiB, or more where the neighbourhoods of a wide sensor's rows
+    /// need them: a power of two up to [`MAX_TABLE_CELLS`](super::MAX_TABLE_CELLS) cells;
+    /// with too few, the sweep walks cursors along the rows instead, to the same result).
+    /// It would otherwise sit on the stack while this runs. Its content on entry does not
+    /// matter.
+    pub fn cluster<const CELLS: usize>(
         &mut self,
         events: &mut [WindowEvent],
         sensor: SensorSize,
         cfg: &ClusterConfig,
-        tables: &mut ColumnTables,
+        tables: &mut [u16; CELLS],
     ) -> ClusterStats {
         let n = events.len().min(N);
         let mut stats =

@@ -49,7 +49,7 @@ pub use clusterer::Clusterer;
 pub use metric::Metric;
 pub use rows::MAX_REACH_ROWS;
 pub use sort::{pixel_order, sort_by_pixel};
-pub use tables::{ColumnTables, TABLE_CELLS};
+pub use tables::{ColumnTables, MAX_TABLE_CELLS, TABLE_CELLS};
 
 /// Label of an event that belongs to no cluster.
 pub const NOISE: u16 = 0x7FFF;

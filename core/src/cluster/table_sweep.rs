@@ -5,7 +5,7 @@ use super::{
     metric::Metric,
     rows::Row,
     tables::{Near, Offset, Tables},
-    ClusterStats, Clusterer, CORE, MASK, MAX_REACH_ROWS, NONE, TABLE_CELLS,
+    ClusterStats, Clusterer, CORE, MASK, MAX_REACH_ROWS, NONE,
 };
 use crate::window::WindowEvent;
 
@@ -19,10 +19,10 @@ const FAR_COLUMN: u32 = 0x8000_0000;
 // Kept out of line: inside the sweep the loop shared the registers of the linking below and
 // reloaded its values on every lookup.
 #[inline(never)]
-fn count_row(
+fn count_row<const CELLS: usize>(
     labels: &mut [u16],
     events: &[WindowEvent],
-    t: &Tables,
+    t: &Tables<CELLS>,
     row: Row,
     near: &[Near],
     min_x: u16,
@@ -65,10 +65,10 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// rows ahead. Returns the neighbourhood queries made, or `None`, having done nothing,
     /// when the tables do not fit in `cells`.
     #[inline(never)]
-    pub(super) fn by_tables(
+    pub(super) fn by_tables<const CELLS: usize>(
         &mut self,
         events: &[WindowEvent],
-        cells: &mut [u16; TABLE_CELLS],
+        cells: &mut [u16; CELLS],
         m: &Metric,
         min_pts: usize,
         (min_x, max_x): (u16, u16),
@@ -84,7 +84,9 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
             *s = m.span(dy as u64).min(u64::from(u16::MAX)) as u16;
         }
         let width = usize::from(max_x.saturating_sub(min_x)) + 1;
-        let mut t = Tables::new(cells, reach, min_x, width, usize::from(span[0]))?;
+        // Events are sorted by row: the last is on the last row.
+        let last_row = events.last().map_or(0, |e| e.y);
+        let mut t = Tables::new(cells, reach, min_x, width, usize::from(span[0]), last_row)?;
         // Row distances: nearest first for counting (most core points are known within a
         // few rows), from the top down for border points (lowest index first), and above.
         let mut nearest = [0i32; 2 * MAX_REACH_ROWS + 1];
@@ -155,10 +157,10 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     // Kept out of line, as `count_row` is.
     #[inline(never)]
     #[allow(clippy::too_many_arguments)]
-    fn link_row(
+    fn link_row<const CELLS: usize>(
         &mut self,
         events: &[WindowEvent],
-        t: &Tables,
+        t: &Tables<CELLS>,
         row: Row,
         near: &[Near],
         above: usize,
@@ -226,10 +228,10 @@ impl<const N: usize, const C: usize> Clusterer<N, C> {
     /// Returns the lookups made.
     #[inline]
     #[allow(clippy::too_many_arguments)]
-    fn link_run(
+    fn link_run<const CELLS: usize>(
         &mut self,
         events: &[WindowEvent],
-        t: &Tables,
+        t: &Tables<CELLS>,
         above: &[Near],
         first: usize,
         (lo_x, hi_x): (u16, u16),

@@ -5,7 +5,8 @@ use super::{rows::Row, MAX_REACH_ROWS};
 use crate::window::WindowEvent;
 
 /// Cells (`u16`, 16 KiB, in the caller's scratch: the detector's `Scratch`) of the column
-/// tables of the spatial sweep: one table per row within reach of the row being visited,
+/// tables of the spatial sweep, by default (a detector's `CELLS` may be larger, up to
+/// [`MAX_TABLE_CELLS`], where the board has the memory): one table per row within reach of the row being visited,
 /// above and below, each as wide as the events' columns plus the neighbourhood either side. The
 /// defaults on a DAVIS346 take 7 rows of 357 cells. Sweeps that need more (wider sensors or
 /// neighbourhoods) and ST-DBSCAN walk cursors along the rows instead, as exactly but slower.
@@ -28,8 +29,8 @@ const SLOTS: usize = 3 * MAX_REACH_ROWS + 1;
 /// Rows are built ahead of their visits into slot `y mod (3·reach + 1)`, which only rows
 /// more than `3·reach` below can take over: by then neither the row being linked nor the
 /// rows being counted (at most `reach` below it) can reach it.
-pub(super) struct Tables<'c> {
-    cells: &'c mut [u16; TABLE_CELLS],
+pub(super) struct Tables<'c, const CELLS: usize> {
+    cells: &'c mut [u16; CELLS],
     /// Row held by each slot and its table's start (past the padding) in the cells, as
     /// `row << CELL_BITS | start` ([`NO_ROW`]: none yet), three times over, so that a slot
     /// shifted by a row distance needs no wrapping; and its events.
@@ -44,11 +45,16 @@ pub(super) struct Tables<'c> {
 }
 
 /// The entry of a slot of [`Tables`] that holds no row: its row, `NO_ROW >> CELL_BITS`, is
-/// beyond every row and row distance.
+/// beyond every row and row distance that [`Tables::new`] takes (see [`LAST_ROW`]).
 const NO_ROW: u32 = u32::MAX;
-/// Bits of a cell index in the entries of [`Tables`].
-const CELL_BITS: u32 = 13;
-const _: () = assert!(TABLE_CELLS <= 1 << CELL_BITS);
+/// Bits of a cell index in the entries of [`Tables`]: tables of up to 65 536 cells.
+const CELL_BITS: u32 = 16;
+/// The last row whose neighbourhoods the tables hold: rows and row distances stay below
+/// `NO_ROW`'s row, so that a slot holding no row is never taken for one.
+const LAST_ROW: usize = (NO_ROW >> CELL_BITS) as usize - 1 - MAX_REACH_ROWS;
+/// The most cells tables may have: their starts are kept in 16 bits of each slot's entry.
+pub const MAX_TABLE_CELLS: usize = 1 << CELL_BITS;
+const _: () = assert!(TABLE_CELLS <= MAX_TABLE_CELLS && TABLE_CELLS.is_power_of_two());
 
 /// A row within reach in [`Tables`]: the offsets in the cells of the lookups for an event at
 /// column offset 0 (the span's start and one past its end).
@@ -58,20 +64,26 @@ pub(super) struct Near {
     pub(super) hi: usize,
 }
 
-impl<'c> Tables<'c> {
+impl<'c, const CELLS: usize> Tables<'c, CELLS> {
+    const CHECK: () =
+        assert!(CELLS <= MAX_TABLE_CELLS && CELLS.is_power_of_two(), "cells: a power of two up to 65 536");
+
     /// Tables for `reach` rows either side, events whose columns start at `min_x` and span
     /// `width`, and spans of at most `pad` columns either side; `None` when they do not fit
     /// in [`TABLE_CELLS`].
     pub(super) fn new(
-        cells: &'c mut [u16; TABLE_CELLS],
+        cells: &'c mut [u16; CELLS],
         reach: usize,
         min_x: u16,
         width: usize,
         pad: usize,
+        last_row: u16,
     ) -> Option<Self> {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::CHECK;
         let slots = 3 * reach + 1;
         let stride = width + 2 * pad + 1;
-        if slots > SLOTS || slots * stride > TABLE_CELLS {
+        if slots > SLOTS || slots * stride > CELLS || usize::from(last_row) > LAST_ROW {
             return None;
         }
         Some(Self {
@@ -87,11 +99,11 @@ impl<'c> Tables<'c> {
     }
 
     /// The cell at `i`. Every lookup is inside the tables by construction; the mask only
-    /// spares the bounds check (`TABLE_CELLS` is a power of two).
+    /// spares the bounds check (`CELLS` is a power of two).
     #[inline(always)]
     pub(super) fn at(&self, i: usize) -> usize {
         debug_assert!(i < self.slots * self.stride, "lookup {i} outside the tables");
-        usize::from(self.cells[i % TABLE_CELLS])
+        usize::from(self.cells[i % CELLS])
     }
 
     /// Builds the table of every row up to row `last`.
@@ -113,7 +125,7 @@ impl<'c> Tables<'c> {
             // `slots · stride` cells fit (see `new`): the row's table is all there (were it
             // not, the sweep would stop building, and stay panic-free). The row's end is found
             // on the way.
-            debug_assert!(base + self.stride <= TABLE_CELLS, "row {y}'s table beyond the cells");
+            debug_assert!(base + self.stride <= CELLS, "row {y}'s table beyond the cells");
             let Some(table) = self.cells.get_mut(base..base + self.stride) else {
                 self.next = events.len();
                 break;

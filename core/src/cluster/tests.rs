@@ -130,7 +130,45 @@ fn default_neighbourhood_on_a_davis346_takes_the_tables() {
     let m = Metric::new(SensorSize::DAVIS346, &ClusterConfig::default(), 1000);
     let mut cells = [0u16; TABLE_CELLS];
     let reach = m.reach_y as usize;
-    assert!(Tables::new(&mut cells, reach, 0, 346, m.span(0) as usize).is_some());
+    assert!(Tables::new(&mut cells, reach, 0, 346, m.span(0) as usize, 259).is_some());
+}
+
+/// A 640x480 sensor's neighbourhoods (7 rows either side) need some 14 500 cells of tables:
+/// in the default scratch the sweep walks cursors along the rows, in a larger one it takes
+/// the tables; both give exactly the labels of textbook DBSCAN, and the tables far fewer
+/// queries.
+#[test]
+fn larger_scratch_takes_the_tables_on_a_wide_sensor_to_the_same_result() {
+    let sensor = SensorSize::DVXPLORER;
+    let mut ev = Vec::new();
+    for (k, (cx, cy)) in [(60.0, 50.0), (320.0, 240.0), (600.0, 430.0), (330.0, 250.0)].iter().enumerate() {
+        ev.extend(ring(*cx, *cy, 9.0, 120, 0, k as u32 + 1));
+    }
+    ev.extend((0..200u32).map(|i| WindowEvent { x: (i * 37 % 640) as u16, y: (i * 53 % 480) as u16, dt_us: i }));
+    ev.sort_by_key(|e| e.dt_us);
+    let cfg = ClusterConfig::default();
+    let m = Metric::new(sensor, &cfg, 1000);
+    let reach = m.reach_y as usize;
+    let (mut small, mut large) = ([0u16; TABLE_CELLS], [0u16; MAX_TABLE_CELLS]);
+    assert!(Tables::new(&mut small, reach, 0, 640, m.span(0) as usize, 479).is_none());
+    assert!(Tables::new(&mut large, reach, 0, 640, m.span(0) as usize, 479).is_some());
+    let mut runs = Vec::new();
+    for big in [false, true] {
+        let mut events = ev.clone();
+        let mut c: Clusterer<1024, 16> = Clusterer::new();
+        let stats = if big {
+            c.cluster(&mut events, sensor, &cfg, &mut [0u16; MAX_TABLE_CELLS])
+        } else {
+            c.cluster(&mut events, sensor, &cfg, &mut [0u16; TABLE_CELLS])
+        };
+        assert_eq!(c.labels(), &brute_force(&events, sensor, &cfg)[..], "tables {big}");
+        runs.push((stats, events, c.labels().to_vec()));
+    }
+    assert_eq!((runs[0].1.clone(), runs[0].2.clone()), (runs[1].1.clone(), runs[1].2.clone()));
+    let (cursors, tables) = (runs[0].0, runs[1].0);
+    assert_eq!(ClusterStats { distance_checks: 0, ..cursors }, ClusterStats { distance_checks: 0, ..tables });
+    assert!(tables.clusters >= 3, "{tables:?}");
+    assert!(tables.distance_checks < cursors.distance_checks, "tables {tables:?}, cursors {cursors:?}");
 }
 
 #[test]

@@ -43,7 +43,7 @@
 //!
 //! `Device` is large: 102,776 bytes on the Cortex-M4F with the default capacities (the
 //! detector's window buffer, clusterer and scratch, its input filter's hold of
-//! [`MAX_HELD_EVENTS`](crate::event::MAX_HELD_EVENTS) events, 600 bytes, plus `RX + TX`). Give it a `static` home, and build it at
+//! [`MAX_HELD_EVENTS`] events, 600 bytes, plus `RX + TX`). Give it a `static` home, and build it at
 //! compile time ([`Device::new`] and [`DetectConfig::for_sensor`] are `const fn`), so that no temporary
 //! copy ever lands on the stack: with `static_cell`, as the firmware does, the image is
 //! written into the static's memory in place:
@@ -73,9 +73,11 @@ use super::{
     Stats,
 };
 use crate::{
+    cluster::TABLE_CELLS,
     config::{MAX_CLUSTERS, MAX_EVENTS_PER_WINDOW},
     detect::{Clock, DetectConfig, Detector},
     event::Event,
+    event::MAX_HELD_EVENTS,
     wire::EventCursor,
 };
 
@@ -139,14 +141,16 @@ enum Order {
 ///
 /// `N`, `C` are the detector's capacities (events per window, clusters),
 /// `RX` the receive buffer (host frames of up to `RX + 2` bytes), `TX` the transmit buffer
-/// (at least [`detection_frame_max`]`(C)`, checked at compile time).
+/// (at least [`detection_frame_max`]`(C)`, checked at compile time), `CELLS` the detector's
+/// scratch ([`Scratch`](crate::detect::Scratch)).
 pub struct Device<
     const N: usize = MAX_EVENTS_PER_WINDOW,
     const C: usize = MAX_CLUSTERS,
     const RX: usize = RX_FRAME,
     const TX: usize = TX_FRAME,
+    const CELLS: usize = TABLE_CELLS,
 > {
-    det: Detector<N, C>,
+    det: Detector<N, C, MAX_HELD_EVENTS, CELLS>,
     opts: DeviceOptions,
     rx: FrameAccumulator<RX>,
     tx: [u8; TX],
@@ -163,7 +167,7 @@ pub struct Device<
     stats: Stats,
 }
 
-impl<const N: usize, const C: usize, const RX: usize, const TX: usize> Device<N, C, RX, TX> {
+impl<const N: usize, const C: usize, const RX: usize, const TX: usize, const CELLS: usize> Device<N, C, RX, TX, CELLS> {
     const CHECK: () = assert!(
         TX >= detection_frame_max(C) && RX >= 32 && RX + 2 <= u16::MAX as usize,
         "TX must hold a detection frame of C centres; RX must hold a useful frame"
