@@ -12,7 +12,7 @@ other people use to write them (not evcal's own writers):
   e2calib's root x, y, p, t (t in ns, LZF-compressed, as e2calib's H5Writer writes it);
 - the plain text `t x y p` list itself (events.txt), the reference the tests compare with.
 
-evcal's tests (host-tools/tests/formats.rs) read every file and require the same events as
+evcal's tests (host-tools/tests/cli/formats.rs) read every file and require the same events as
 events.txt. The committed fixtures in host-tools/tests/fixtures/formats/ were made by this
 script with the writer versions scripts/setup.sh pins (it reproduces them byte for byte);
 scripts/test.sh runs it again into target/ and reads what it wrote.

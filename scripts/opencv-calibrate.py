@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Calibrates with OpenCV's cv2.calibrateCamera from the views in a JSON file, for comparing
-evcal's solver with OpenCV's on identical input (tests/tests/opencv.rs, scripts/bench-calib.sh).
+evcal's solver with OpenCV's on identical input (tests/tests/end_to_end/opencv.rs, scripts/bench-calib.sh).
 
     python3 scripts/opencv-calibrate.py INPUT.json > OUTPUT.json
 

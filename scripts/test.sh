@@ -68,32 +68,28 @@ EVCAL_REQUIRE_TEST_DATA=1 cargo test --workspace --no-fail-fast 2>&1 | tee targe
 
 step "recordings written again by dv-processing, rosbags, h5py (versions pinned in setup.sh), read again"
 python3 scripts/make-format-fixtures.py target/test-data/formats-fresh
-EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test formats 2>&1 \
+EVCAL_FORMAT_FIXTURES="$PWD/target/test-data/formats-fresh" cargo test --workspace --test cli -- formats:: 2>&1 \
   | tee -a target/test-output.txt
 
-step "fuzz every decoder, the detection pipeline and every host reader (bounded: ${EVCAL_FUZZ_SECONDS:-8} s per target)"
-# 14 targets (8 of the core: decoders, wire, detector, time filter; 6 host readers, which
-# build the host library too): installing cargo-fuzz ~65 s, building the targets, then 8 s
-# each (112 s); kept under ~6 minutes.
-# Longer runs: bash scripts/fuzz.sh 600
+step "fuzz the core's decoders, the wire and the detection pipeline (bounded: ${EVCAL_FUZZ_SECONDS:-8} s per target)"
+# The core's 8 targets (the EVT decoders, the wire, the detector, the time filter): installing
+# cargo-fuzz ~65 s, building them, then 8 s each. The 6 host readers' targets build the host
+# library and HDF5 from source under the sanitizer (some 4 of CI's minutes): the slow tier
+# fuzzes them (scripts/test-slow.sh, docs/testing.md#fuzzing). Longer: bash scripts/fuzz.sh 600
 cargo fmt --manifest-path fuzz/Cargo.toml -- --check
-# read_h5 runs too since HDF5 is built from source (2.2): the bugs of the system's HDF5 1.10
-# that the fuzzer reached before evcal could check (a division by zero opening a dataset with
-# corrupt chunk dimensions) are gone, and those evcal can check for are kept from reach
-# (docs/testing.md#fuzzing); its leak checks are off (HDF5's global state). Longer:
-# bash scripts/fuzz.sh 600 read_h5
-bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-8}"
+mapfile -t core_targets < <(sed -n 's/^name = "\([a-z0-9_]*\)"$/\1/p' fuzz/Cargo.toml | grep -v -e '^evcal-fuzz$' -e '^read_')
+bash scripts/fuzz.sh "${EVCAL_FUZZ_SECONDS:-8}" "${core_targets[@]}"
 
 # The firmware on QEMU's mps2-an386 against the host: measured 65-90 s (the 100-window UART
 # replay is 35 s of it), and the instruction budget over the benchmark's scenario about 25 s
 # more on 2 loaded cores (its simulation mostly); the test binary is the workspace tests'
 # build (`--workspace`: with `-p evcal-tests` alone the features unify otherwise and the host
 # library is built again, minutes of CI), the image the one built above. See
-# tests/tests/firmware_qemu.rs. Ignored by a plain `cargo test`, which needs no QEMU.
+# tests/tests/end_to_end/firmware_qemu.rs. Ignored by a plain `cargo test`, which needs no QEMU.
 # The Cortex-M7 (mps2-an500) test, a 640x480 recording in the host's 15 000-event windows:
 # about 25 s more on 2 loaded cores (its image is built in the step above).
 step "firmware under QEMU (emulated Cortex-M4F and Cortex-M7 boards)"
-cargo test --workspace --test firmware_qemu -- --ignored 2>&1 | tee -a target/test-output.txt
+cargo test --workspace --test end_to_end -- --ignored firmware_qemu:: 2>&1 | tee -a target/test-output.txt
 
 # Repeat the runner's closing totals on one line for CI readers.
 awk '/^test result:/ { split($0, a, /[.;] /); p += $4; f += $6 } END { printf "%d passed, %d failed\n", p, f }' target/test-output.txt

@@ -111,7 +111,7 @@ pub fn simulate(
 /// ([`Simulator::skip_to`](crate::sim::Simulator::skip_to)). With windows of a few
 /// milliseconds every 33 ms this simulates about a seventh of the time [`simulate`] does, and
 /// the windows the detector cuts are equally distributed: their centres trail their circles
-/// as far, and the calibration agrees (`tests/tests/calibration.rs`). `progress` is called
+/// as far, and the calibration agrees (`tests/tests/end_to_end/calibration.rs`). `progress` is called
 /// after each window with the simulated time reached, seconds.
 pub fn simulate_windows(
     sim_cfg: crate::sim::SimConfig,

@@ -256,7 +256,7 @@ fn main() -> Result<()> {
     }
     let centres: usize = run.windows.iter().map(|w| w.centres.len()).sum();
     println!("centres per window: {:.1} mean", centres as f64 / run.windows.len().max(1) as f64);
-    // The device's detection frames are these bytes exactly (tests/tests/firmware_qemu.rs).
+    // The device's detection frames are these bytes exactly (tests/tests/end_to_end/firmware_qemu.rs).
     let frames = link::expected_frames(&events, cfg)?;
     let sizes: Vec<f64> = frames.iter().map(|(_, f)| f.len() as f64).collect();
     let s = summary(&sizes);
@@ -293,7 +293,7 @@ fn main() -> Result<()> {
             to_ms(s.mean),
             to_ms(s.max)
         );
-        // The budget CI holds every window to (tests/tests/firmware_qemu.rs).
+        // The budget CI holds every window to (tests/tests/end_to_end/firmware_qemu.rs).
         let budget = o.board.budget as f64;
         println!(
             "targets: <= {} instructions per window (<= {:.0} per event), aim <= 400 per event ({})",

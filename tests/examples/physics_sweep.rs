@@ -18,7 +18,7 @@
 //! as each window's mean; `sweep::decompose`), to tell which part carries a bias.
 //!
 //! The cases and their targets are `evcal_tests::sweep`'s; the last column says which
-//! targets a case misses. `tests/physics.rs` runs a corner of the sweep in CI.
+//! targets a case misses. `tests/tests/end_to_end/physics.rs` runs a corner of the sweep (CI a smoke case, the slow tier the rest).
 
 use evcal_core::event::SensorSize;
 use evcal_host::input::detections::window_events_for;

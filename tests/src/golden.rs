@@ -18,7 +18,7 @@ pub fn fnv1a64(bytes: &[u8]) -> u64 {
 }
 
 /// The seeded simulation of [`DETECT_JSONL`]: `evcal simulate --seed 7 --seconds 0.47` with
-/// the defaults (DAVIS346, 4x11 grid, cone, good light), as `tests/tests/firmware_qemu.rs`'s
+/// the defaults (DAVIS346, 4x11 grid, cone, good light), as `tests/tests/end_to_end/firmware_qemu.rs`'s
 /// UART replay simulates it.
 pub const DETECT_SEED: u64 = 7;
 /// Simulated seconds of [`DETECT_JSONL`]'s recording.
@@ -33,7 +33,7 @@ pub const DETECT_STEP_MS: u64 = 0;
 pub const DETECT_JSONL: u64 = 0xf306_0bde_7816_0794;
 
 /// The seeded simulation of [`BENCH_LINES`]: DAVIS346, 4x11 grid, cone, good light, seed 5,
-/// 0.6 s, windows of 4000 events every 5 ms (`tests/tests/firmware_qemu.rs`'s bulk replay).
+/// 0.6 s, windows of 4000 events every 5 ms (`tests/tests/end_to_end/firmware_qemu.rs`'s bulk replay).
 pub const BENCH_SEED: u64 = 5;
 /// Simulated seconds of [`BENCH_LINES`]'s recording.
 pub const BENCH_SECONDS: f64 = 0.6;

@@ -1,6 +1,6 @@
 //! The sweep of the simulated pixel's physics: its cases, the targets each is held to
 //! (issue 16), and one case run from simulation to calibration. The `physics_sweep`
-//! example prints every case as a table; `tests/physics.rs` holds a corner of it in CI.
+//! example prints every case as a table; `tests/tests/end_to_end/physics.rs` holds a corner of it (a smoke case in CI, the rest in the slow tier).
 
 use crate::recorded::Recorded;
 use evcal_host::{

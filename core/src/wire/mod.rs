@@ -64,7 +64,7 @@
 //!
 //! Centres are quantised to 1/1024 px ([`fixed`]) and packed with a frame of reference per
 //! field: a window's radii that span 3.2–9.8 px cost 13 bits each, not 32. Measured
-//! (`cargo test -p evcal-tests --test link bytes -- --nocapture`): simulated DAVIS346 4x11
+//! (`cargo test -p evcal-tests --test end_to_end link::bytes -- --nocapture`): simulated DAVIS346 4x11
 //! windows with clutter, 43 centres on average, take 428 bytes on average and 536 at most;
 //! a full window of 96 centres spread over a whole 1280 x 720 sensor takes 998 bytes
 //! (`a_full_window_is_under_1_kib_on_every_sensor`).

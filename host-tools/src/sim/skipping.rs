@@ -56,7 +56,7 @@ impl Simulator {
     /// threshold at a time. A pixel the edge has only begun to reach so keeps the reference of
     /// its still past, more than one threshold away, and fires late inside the blurred edge:
     /// the events of a window after a jump trail their edges as far as a continuous run's
-    /// (0.13 px in the demo's case; `tests/tests/calibration.rs`). Without `trace` (the start
+    /// (0.13 px in the demo's case; `tests/tests/end_to_end/calibration.rs`). Without `trace` (the start
     /// of a run) every pixel is treated as still. (Jumps used to put a changing pixel at a
     /// random phase of the change under way, within one threshold of its level: it fired
     /// early, and the pipeline measured an edge shift of 0.01 px after jumps where a

@@ -1,10 +1,10 @@
 //! `evcal simulate` with a fixed seed, then `evcal detect`: the detections file, byte for
 //! byte, against the golden hash that the firmware's output on the same events is also
-//! checked against (`tests/src/golden.rs`, `tests/tests/firmware_qemu.rs`).
+//! checked against (`tests/src/golden.rs`, `tests/tests/end_to_end/firmware_qemu.rs`).
 
 // The golden constants live with the end-to-end tests; this package cannot depend on theirs.
 #[allow(dead_code)]
-#[path = "../../tests/src/golden.rs"]
+#[path = "../../../tests/src/golden.rs"]
 mod golden;
 
 use std::process::Command;

@@ -1,6 +1,6 @@
 //! The host's run of the core on seeded simulations against the golden hashes that the
-//! firmware's output under QEMU is also checked against (`tests/tests/firmware_qemu.rs`;
-//! `evcal detect` itself: `host-tools/tests/golden_detect.rs`). See `tests/src/golden.rs`.
+//! firmware's output under QEMU is also checked against (`tests/tests/end_to_end/firmware_qemu.rs`;
+//! `evcal detect` itself: `host-tools/tests/cli/golden_detect.rs`). See `tests/src/golden.rs`.
 
 use evcal_core::{detect::DetectConfig, event::SensorSize};
 use evcal_host::{

@@ -4,7 +4,7 @@
 //! These boot the real firmware image, so they need `qemu-system-arm` (scripts/setup.sh
 //! installs it) and the `thumbv7em-none-eabihf` target; they build the image themselves.
 //! Ignored by a plain `cargo test`; scripts/test.sh runs them:
-//! `cargo test -p evcal-tests --test firmware_qemu -- --ignored`.
+//! `cargo test -p evcal-tests --test end_to_end -- --ignored firmware_qemu::`.
 
 use evcal_core::{
     detect::DetectConfig,

@@ -296,65 +296,6 @@ fn davis346_4x11_cone_low_light() {
 }
 
 #[test]
-fn dvxplorer_4x11_cone_good_light() {
-    let f = run(&Case {
-        sensor: "dvxplorer",
-        pattern: "4x11",
-        trajectory: Trajectory::Cone,
-        light: Light::Good,
-        seconds: RECORDING_S,
-        seed: 5,
-        windowed: true,
-        unseen: None,
-    });
-    guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
-    // The issue's target for windows sized to the sensor: the finder labels the grid by
-    // itself in 90 % of the windows where it is wholly in view (15 000-event windows: 100 %,
-    // RMS 0.041 px; 7500: 94.4 %, 0.069 px; 4000, the paper's size for a DAVIS346: 78.9 %,
-    // the rest followed from the windows around them, 0.111 px).
-    assert!(
-        f.alone_in_view >= 0.90,
-        "the finder alone labels the grid in {:.1} % of in-view windows",
-        100.0 * f.alone_in_view
-    );
-}
-
-/// The DVXplorer in low light: its far columns often too dim for the core, the case in which
-/// the finder once labelled a grid two columns off (a background disc lined up beyond the
-/// seen columns; seed 2, window 297; see `grid::place`). The issue sets no RMS target for low
-/// light; this one reached 0.164 px with 4000-event windows (seeds 1, 5: 0.141, 0.143 before
-/// the 1.75 px give-up of clutter fits), 0.090 px with 7500, 0.054 px with the host's 15 000.
-#[test]
-fn dvxplorer_4x11_cone_low_light() {
-    let f = run(&Case {
-        sensor: "dvxplorer",
-        pattern: "4x11",
-        trajectory: Trajectory::Cone,
-        light: Light::Low,
-        seconds: RECORDING_S,
-        seed: 2,
-        windowed: true,
-        unseen: None,
-    });
-    guard(&f, LOW_LIGHT_RMS_PX, TARGET_FOCAL_PCT);
-}
-
-#[test]
-fn dvxplorer_3x9_spiral_good_light() {
-    let f = run(&Case {
-        sensor: "dvxplorer",
-        pattern: "3x9",
-        trajectory: Trajectory::Spiral,
-        light: Light::Good,
-        seconds: RECORDING_S,
-        seed: 5,
-        windowed: true,
-        unseen: None,
-    });
-    guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
-}
-
-#[test]
 fn davis346_3x9_spiral_good_light() {
     let f = run(&Case {
         sensor: "davis346",
@@ -415,48 +356,142 @@ fn grouped_sigma_covers_the_error(seconds: f64, unseen: Option<(f64, f64)>) {
     }
 }
 
-/// `evcal demo` simulates only the milliseconds each window needs, jumping between window
-/// ticks (`Simulator::skip_to`). The pipeline's edge-shift measurement had been validated on
-/// continuous simulations only: here the demo's own case (seed 1, 3 s) both ways, each
-/// against its own truth. The centres must trail their circles as far after jumps as in a
-/// continuous run (a jump that left each pixel's reference within one threshold of its
-/// present level made them trail by 0.01 px instead of 0.13), the pipeline must measure
-/// that, and the calibrations must agree within their scatter from seed to seed (0.05 %).
+/// A smoke case of the DVXplorer for CI's fast tier ([`slow`] holds its full cases): 3 s of
+/// the good-light cone, too short for the focal length's target (a third of the cone's tilt
+/// cycle, as [`SHORT_FOCAL_PCT`] says), but every other guard of the 12 s case: no wrong
+/// ordering, the grid found, by the finder alone too, in the sensor's own windows.
 #[test]
-fn windowed_simulation_calibrates_as_continuous_does() {
-    let case = |windowed| Case {
-        sensor: "davis346",
+fn dvxplorer_4x11_cone_smoke() {
+    let f = run(&Case {
+        sensor: "dvxplorer",
         pattern: "4x11",
         trajectory: Trajectory::Cone,
         light: Light::Good,
         seconds: 3.0,
-        seed: 1,
-        windowed,
+        seed: 5,
+        windowed: true,
         unseen: None,
-    };
-    let (c, w) = (run(&case(false)), run(&case(true)));
-    guard(&c, TARGET_RMS_PX, SHORT_FOCAL_PCT);
-    guard(&w, TARGET_RMS_PX, SHORT_FOCAL_PCT);
+    });
+    guard(&f, TARGET_RMS_PX, SHORT_FOCAL_PCT);
     assert!(
-        (w.shift_true - c.shift_true).abs() < 0.03,
-        "centres trail their circles by {:.3} px after jumps, {:.3} px in a continuous run",
-        w.shift_true,
-        c.shift_true
+        f.alone_in_view >= 0.90,
+        "the finder alone labels the grid in {:.1} % of in-view windows",
+        100.0 * f.alone_in_view
     );
-    let (ws, cs) = (w.shift_estimate.unwrap(), c.shift_estimate.unwrap());
-    assert!((ws - cs).abs() < 0.03, "edge shift measured {ws:.3} px after jumps, {cs:.3} px in a continuous run");
-    assert!(
-        (w.fx_pct - c.fx_pct).abs() < 0.15 && (w.fy_pct - c.fy_pct).abs() < 0.15,
-        "fx {:+.3} % fy {:+.3} % after jumps, fx {:+.3} % fy {:+.3} % in a continuous run",
-        w.fx_pct,
-        w.fy_pct,
-        c.fx_pct,
-        c.fy_pct
-    );
-    assert!(
-        (w.rms_px - c.rms_px).abs() < 0.03,
-        "RMS {:.3} px after jumps, {:.3} px in a continuous run",
-        w.rms_px,
-        c.rms_px
-    );
+}
+
+/// The DVXplorer's cases at full length and the windowed simulation against the continuous one:
+/// minutes of CPU each (a 640x480 sensor's 12 s, 100–145 s; the continuous simulation 57 s),
+/// run by the slow tier. CI's fast tier holds [`dvxplorer_4x11_cone_smoke`].
+mod slow {
+    use super::*;
+
+    #[test]
+    #[ignore = "slow tier: bash scripts/test-slow.sh"]
+    fn dvxplorer_4x11_cone_good_light() {
+        let f = run(&Case {
+            sensor: "dvxplorer",
+            pattern: "4x11",
+            trajectory: Trajectory::Cone,
+            light: Light::Good,
+            seconds: RECORDING_S,
+            seed: 5,
+            windowed: true,
+            unseen: None,
+        });
+        guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
+        // The issue's target for windows sized to the sensor: the finder labels the grid by
+        // itself in 90 % of the windows where it is wholly in view (15 000-event windows: 100 %,
+        // RMS 0.041 px; 7500: 94.4 %, 0.069 px; 4000, the paper's size for a DAVIS346: 78.9 %,
+        // the rest followed from the windows around them, 0.111 px).
+        assert!(
+            f.alone_in_view >= 0.90,
+            "the finder alone labels the grid in {:.1} % of in-view windows",
+            100.0 * f.alone_in_view
+        );
+    }
+
+    /// The DVXplorer in low light: its far columns often too dim for the core, the case in which
+    /// the finder once labelled a grid two columns off (a background disc lined up beyond the
+    /// seen columns; seed 2, window 297; see `grid::place`). The issue sets no RMS target for low
+    /// light; this one reached 0.164 px with 4000-event windows (seeds 1, 5: 0.141, 0.143 before
+    /// the 1.75 px give-up of clutter fits), 0.090 px with 7500, 0.054 px with the host's 15 000.
+    #[test]
+    #[ignore = "slow tier: bash scripts/test-slow.sh"]
+    fn dvxplorer_4x11_cone_low_light() {
+        let f = run(&Case {
+            sensor: "dvxplorer",
+            pattern: "4x11",
+            trajectory: Trajectory::Cone,
+            light: Light::Low,
+            seconds: RECORDING_S,
+            seed: 2,
+            windowed: true,
+            unseen: None,
+        });
+        guard(&f, LOW_LIGHT_RMS_PX, TARGET_FOCAL_PCT);
+    }
+
+    #[test]
+    #[ignore = "slow tier: bash scripts/test-slow.sh"]
+    fn dvxplorer_3x9_spiral_good_light() {
+        let f = run(&Case {
+            sensor: "dvxplorer",
+            pattern: "3x9",
+            trajectory: Trajectory::Spiral,
+            light: Light::Good,
+            seconds: RECORDING_S,
+            seed: 5,
+            windowed: true,
+            unseen: None,
+        });
+        guard(&f, TARGET_RMS_PX, TARGET_FOCAL_PCT);
+    }
+
+    /// `evcal demo` simulates only the milliseconds each window needs, jumping between window
+    /// ticks (`Simulator::skip_to`). The pipeline's edge-shift measurement had been validated on
+    /// continuous simulations only: here the demo's own case (seed 1, 3 s) both ways, each
+    /// against its own truth. The centres must trail their circles as far after jumps as in a
+    /// continuous run (a jump that left each pixel's reference within one threshold of its
+    /// present level made them trail by 0.01 px instead of 0.13), the pipeline must measure
+    /// that, and the calibrations must agree within their scatter from seed to seed (0.05 %).
+    #[test]
+    #[ignore = "slow tier: bash scripts/test-slow.sh"]
+    fn windowed_simulation_calibrates_as_continuous_does() {
+        let case = |windowed| Case {
+            sensor: "davis346",
+            pattern: "4x11",
+            trajectory: Trajectory::Cone,
+            light: Light::Good,
+            seconds: 3.0,
+            seed: 1,
+            windowed,
+            unseen: None,
+        };
+        let (c, w) = (run(&case(false)), run(&case(true)));
+        guard(&c, TARGET_RMS_PX, SHORT_FOCAL_PCT);
+        guard(&w, TARGET_RMS_PX, SHORT_FOCAL_PCT);
+        assert!(
+            (w.shift_true - c.shift_true).abs() < 0.03,
+            "centres trail their circles by {:.3} px after jumps, {:.3} px in a continuous run",
+            w.shift_true,
+            c.shift_true
+        );
+        let (ws, cs) = (w.shift_estimate.unwrap(), c.shift_estimate.unwrap());
+        assert!((ws - cs).abs() < 0.03, "edge shift measured {ws:.3} px after jumps, {cs:.3} px in a continuous run");
+        assert!(
+            (w.fx_pct - c.fx_pct).abs() < 0.15 && (w.fy_pct - c.fy_pct).abs() < 0.15,
+            "fx {:+.3} % fy {:+.3} % after jumps, fx {:+.3} % fy {:+.3} % in a continuous run",
+            w.fx_pct,
+            w.fy_pct,
+            c.fx_pct,
+            c.fy_pct
+        );
+        assert!(
+            (w.rms_px - c.rms_px).abs() < 0.03,
+            "RMS {:.3} px after jumps, {:.3} px in a continuous run",
+            w.rms_px,
+            c.rms_px
+        );
+    }
 }

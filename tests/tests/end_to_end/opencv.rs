@@ -117,7 +117,7 @@ fn same_minimum_as_opencv() {
 /// Both solvers on 700 views of the 4x11 grid (30 800 points) find the same minimum, as on
 /// 25; their times are printed for docs/accuracy.md, not asserted (OpenCV takes minutes here: its
 /// normal equations are dense in every pose).
-/// `cargo test -p evcal-tests --release --test opencv -- --ignored --nocapture`
+/// `cargo test -p evcal-tests --release --test end_to_end -- opencv:: --ignored --nocapture`
 #[test]
 #[ignore = "minutes of OpenCV; run by hand for the figure"]
 fn same_minimum_as_opencv_on_700_views() {
