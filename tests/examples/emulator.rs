@@ -33,7 +33,7 @@ use evcal_host::{
     calib::{calibrate, Intrinsics, Options, View},
     input::detections::{self, read_jsonl, WindowRecord},
     input::recording::{ReadError, Recording},
-    pipeline::{calibrate_views, disc_fallback_rejects, no_calibration, verdict, views_from_windows, Outcome, Setup},
+    pipeline::{calibrate_with_disc_fallback, views_from_windows, Chosen, DiscFallback, Outcome, Setup},
 };
 use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
@@ -415,18 +415,19 @@ fn main() {
         if no_smoothing {
             setup.smooth = None;
         }
-        let mut views = views_from_windows(&windows, &setup, &|_| {});
-        let mut result = calibrate_views(&views, &setup);
-        // As `evcal calibrate`: filled discs where the rings give no calibration.
+        let views = views_from_windows(&windows, &setup, &|_| {});
+        // As `evcal calibrate`: filled discs where the rings give no calibration; their
+        // windows kept for `--diagnose` should they be taken.
+        let mut disc_windows = Vec::new();
+        let discs = |_: &_| {
+            disc_windows = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment, true);
+            Ok::<_, std::convert::Infallible>(Some(views_from_windows(&disc_windows, &setup, &|_| {})))
+        };
+        let Ok(Chosen { views, result, fallback }) = calibrate_with_disc_fallback(views, &setup, discs);
         let mut name = truth.name.clone();
-        if no_calibration(&result).is_some() {
-            let discs = windows_of(&dir, &truth.name, cache.as_deref(), sensor, experiment, true);
-            let disc_views = views_from_windows(&discs, &setup, &|_| {});
-            let disc_result = calibrate_views(&disc_views, &setup);
-            if disc_fallback_rejects(&disc_result).is_none() {
-                (windows, views, result) = (discs, disc_views, disc_result);
-                name += " (filled discs)";
-            }
+        if matches!(fallback, DiscFallback::Taken { .. }) {
+            windows = disc_windows;
+            name += " (filled discs)";
         }
         let out = match result {
             Ok(o) => o,
@@ -436,7 +437,7 @@ fn main() {
             }
         };
         let c = &out.calibration;
-        if verdict(c).is_some() {
+        if out.failure.is_some() {
             name += " (no calibration)";
         }
         let e = errors(&c.intrinsics, &k);

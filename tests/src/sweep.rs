@@ -4,9 +4,7 @@
 
 use crate::recorded::Recorded;
 use evcal_host::{
-    pipeline::{
-        calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Setup, FOCAL_WARN_RELATIVE,
-    },
+    pipeline::{calibrate_with_disc_fallback, views_from_windows, Chosen, DiscFallback, Setup, FOCAL_WARN_RELATIVE},
     sim::{Light, PixelModel, SimConfig, Trajectory},
     views::grid::Pattern,
 };
@@ -254,15 +252,13 @@ pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, Stri
     let cam = cfg.camera;
     let setup = Setup::new(pattern, [u32::from(cam.width), u32::from(cam.height)]);
     let views = views_from_windows(&rec.windows, &setup, &|_| {});
-    let mut result = calibrate_views(&views, &setup);
-    let mut filled_discs = false;
     // As `evcal calibrate`: filled discs where the rings give no calibration, if they give one.
-    if no_calibration(&result).is_some() && !rec.disc_windows.is_empty() {
-        let discs = calibrate_views(&views_from_windows(&rec.disc_windows, &setup, &|_| {}), &setup);
-        if disc_fallback_rejects(&discs).is_none() {
-            (result, filled_discs) = (discs, true);
-        }
-    }
+    let discs = |_: &_| {
+        let some = !rec.disc_windows.is_empty();
+        Ok::<_, std::convert::Infallible>(some.then(|| views_from_windows(&rec.disc_windows, &setup, &|_| {})))
+    };
+    let Ok(Chosen { result, fallback, .. }) = calibrate_with_disc_fallback(views, &setup, discs);
+    let filled_discs = matches!(fallback, DiscFallback::Taken { .. });
     let o = result.map_err(|e| e.to_string())?;
     let (k, sd) = (o.calibration.intrinsics, o.calibration.std_dev);
     Ok(Outcome {
@@ -271,7 +267,7 @@ pub fn run_on(case: &Case, sensor: &str, rec: &Recorded) -> Result<Outcome, Stri
         rms_px: o.calibration.rms_px,
         views: o.calibration.views.len(),
         failed: o.failure.is_some(),
-        focal_warning: o.advice.iter().any(|a| a.starts_with("the focal length is weakly fixed")),
+        focal_warning: o.weak_focal.is_some(),
         filled_discs,
     })
 }

@@ -2,8 +2,9 @@
 //! chosen, the solve, and what the coverage says about it.
 //!
 //! Data flows one way: [`views_from_windows`] turns windows into views (with the grid
-//! finder's tally), [`calibrate_views`] chooses among them and solves. `evcal calibrate`,
-//! `evcal demo` and the end-to-end tests all go through here.
+//! finder's tally), [`calibrate_views`] chooses among them and solves, and
+//! [`calibrate_with_disc_fallback`] tries filled discs where the rings give no calibration.
+//! `evcal calibrate`, `evcal demo` and the end-to-end tests all go through here.
 
 use crate::calib::{self, k3_displacement_px, CalibError, Calibration, View, K3_NEGLIGIBLE_PX};
 use crate::input::detections::WindowRecord;
@@ -21,9 +22,10 @@ mod tests;
 mod verdicts;
 mod views;
 
-use verdicts::focal_warning;
 pub use verdicts::{
-    disc_fallback_rejects, no_calibration, verdict, DISC_FALLBACK_FOCAL_RELATIVE, FAILED_RELATIVE, FOCAL_WARN_RELATIVE,
+    calibrate_with_disc_fallback, disc_fallback_rejects, no_calibration, verdict, Chosen, DiscFallback, DiscRejection,
+    Loose, LooseParam, Looseness, NoCalibration, WeakFocal, WeakFocalCause, DISC_FALLBACK_FOCAL_RELATIVE,
+    FAILED_RELATIVE, FOCAL_WARN_RELATIVE,
 };
 pub use views::{view_of, views_from_windows, GridStats, Views};
 
@@ -100,9 +102,12 @@ pub struct Outcome {
     pub coverage: Coverage,
     /// What the user should know about the views, and what motion would help.
     pub advice: Vec<String>,
+    /// The focal length is looser than [`FOCAL_WARN_RELATIVE`], and what would fix it;
+    /// `None` when it is not.
+    pub weak_focal: Option<WeakFocal>,
     /// Why the result is no calibration at all, when the views leave a parameter so loose
     /// that no value printed could be trusted ([`verdict`]); `None` for a calibration.
-    pub failure: Option<String>,
+    pub failure: Option<Loose>,
 }
 
 /// Why no calibration came out.
@@ -117,23 +122,7 @@ pub enum PipelineError {
 impl fmt::Display for PipelineError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            PipelineError::NoGrid(s) if s.windows == 0 => write!(f, "no detection windows to look for the grid in"),
-            PipelineError::NoGrid(s) => {
-                write!(
-                    f,
-                    "{}: check --pattern (ROWSxCOLS as the board is printed) and that the board is in view",
-                    s.summary()
-                )?;
-                // Most windows short of circles: the rings themselves were not there.
-                let short = s.misses.get(&Miss::TooFewCentres).copied().unwrap_or(0);
-                if 2 * short > s.windows {
-                    write!(
-                        f,
-                        "; in {short} windows the core found fewer circles than the grid has, so the circles did not show as clean rings of events: in dim light the pixels answer slowly and smear each edge over many pixels (more light helps most), and a board out of focus, moving too fast to follow or barely moving does the same"
-                    )?;
-                }
-                Ok(())
-            }
+            PipelineError::NoGrid(s) => verdicts::write_no_grid(f, s),
             PipelineError::Calib(e) => write!(f, "{e}"),
         }
     }
@@ -280,9 +269,9 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         };
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
-    let mut advice = advice(&calibration, &coverage);
+    let advice = advice(&calibration, &coverage);
     let lag = edge_shift.and_then(|s| s.by_thickness).map(|b| b.change);
-    advice.extend(focal_warning(&calibration, &coverage, lag.as_ref()));
+    let weak_focal = WeakFocal::of(&calibration, &coverage, lag.as_ref());
     let failure = verdict(&calibration);
     Ok(Outcome {
         selection,
@@ -294,6 +283,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         without_k3,
         coverage,
         advice,
+        weak_focal,
         failure,
     })
 }

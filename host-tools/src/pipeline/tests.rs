@@ -3,6 +3,8 @@
 use super::*;
 use crate::input::detections::CenterRecord;
 
+mod verdicts;
+
 /// Windows whose centres are a pattern's circles seen head-on (plus one stray), moved a
 /// little per window.
 fn windows(pattern: &Pattern, n: usize) -> Vec<WindowRecord> {
@@ -102,13 +104,14 @@ fn filled_discs_are_taken_only_where_they_fix_the_focal_length() {
     assert!(no_calibration(&Ok(o.clone())).is_none());
     assert_eq!(disc_fallback_rejects(&Ok(o.clone())), None);
     o.calibration.std_dev[1] = 0.02 * k.fy;
-    let why = disc_fallback_rejects(&Ok(o.clone())).expect("refused");
+    let why = disc_fallback_rejects(&Ok(o.clone())).expect("refused").to_string();
     assert!(why.contains("±2.0 %") && why.contains("12 views"), "{why}");
     o.calibration.std_dev[1] = f64::NAN;
     assert!(disc_fallback_rejects(&Ok(o.clone())).is_some());
-    o.failure = Some("loose".into());
-    assert_eq!(no_calibration(&Ok(o.clone())).as_deref(), Some("loose"));
-    assert_eq!(disc_fallback_rejects(&Ok(o)).as_deref(), Some("loose"));
+    let loose = Loose { params: vec![LooseParam { index: 0, by: Looseness::NotFixed }] };
+    o.failure = Some(loose.clone());
+    assert_eq!(no_calibration(&Ok(o.clone())), Some(NoCalibration::Loose(loose.clone())));
+    assert_eq!(disc_fallback_rejects(&Ok(o)), Some(DiscRejection::NoCalibration(NoCalibration::Loose(loose))));
 }
 
 /// A calibration whose focal length the views leave loose is warned about, and one they
@@ -119,21 +122,21 @@ fn loose_parameters_are_warned_about_or_fail_the_calibration() {
     let views = calib::synthetic_views(&truth, 12, 0.02, 3);
     let mut cal = calib::calibrate(&views, [346, 260], &calib::Options::default()).unwrap();
     let coverage = Coverage::of(&views.iter().collect::<Vec<_>>(), [346, 260]);
-    assert!(verdict(&cal).is_none() && focal_warning(&cal, &coverage, None).is_none(), "{:?}", cal.std_dev);
+    assert!(verdict(&cal).is_none() && WeakFocal::of(&cal, &coverage, None).is_none(), "{:?}", cal.std_dev);
     cal.std_dev[0] = 0.004 * truth.fx;
-    let w = focal_warning(&cal, &coverage, None).expect("a warning");
+    let w = WeakFocal::of(&cal, &coverage, None).expect("a warning").to_string();
     assert!(w.contains("fx ±0.40 %") && w.contains("tilt") && !w.contains("late"), "{w}");
     // Most of that σ from the lag's model: said, with what makes edges quicker.
     let mut lag = [0.0; 9];
     lag[0] = 0.0035 * truth.fx;
-    let w = focal_warning(&cal, &coverage, Some(&lag)).expect("a warning");
+    let w = WeakFocal::of(&cal, &coverage, Some(&lag)).expect("a warning").to_string();
     assert!(w.contains("how late the edges were seen") && w.contains("+0.35 %") && w.contains("more light"), "{w}");
     lag[0] = 0.001 * truth.fx;
-    assert!(!focal_warning(&cal, &coverage, Some(&lag)).unwrap().contains("late"));
+    assert_eq!(WeakFocal::of(&cal, &coverage, Some(&lag)).unwrap().lag_fx_rel, None);
     assert!(verdict(&cal).is_none());
     cal.std_dev[0] = 1.27 * truth.fx;
     cal.std_dev[3] = f64::NAN;
-    let why = verdict(&cal).expect("no calibration");
+    let why = verdict(&cal).expect("no calibration").to_string();
     assert!(why.contains("fx ±127.0 %") && why.contains("cy not fixed at all"), "{why}");
 }
 

@@ -27,6 +27,16 @@ pub struct GridStats {
 impl GridStats {
     /// One line for users: found in how many windows, and why not in the rest.
     pub fn summary(&self) -> String {
+        let mut s = self.found_summary();
+        if self.points_at_edge > 0 {
+            s += &format!("; {} points at the sensor's border left out", self.points_at_edge);
+        }
+        s
+    }
+
+    /// [`summary`](Self::summary) without the points left out at the border: the grid's
+    /// count alone, for a note that quotes why a run gave no calibration.
+    pub fn found_summary(&self) -> String {
         let mut s = format!("grid found in {} of {} windows", self.found, self.windows);
         if self.followed > 0 {
             s += &format!(" ({} of them followed from the windows around them", self.followed);
@@ -38,9 +48,6 @@ impl GridStats {
         if !self.misses.is_empty() {
             let why: Vec<String> = self.misses.iter().map(|(m, n)| format!("{n} {m}")).collect();
             s += &format!(" (not found: {})", why.join(", "));
-        }
-        if self.points_at_edge > 0 {
-            s += &format!("; {} points at the sensor's border left out", self.points_at_edge);
         }
         s
     }

@@ -14,8 +14,8 @@ use evcal_host::{
     input::detections::{self, WindowRecord},
     input::recording::{parse_sensor, OpenOptions, Recording, STDIN_NAME},
     pipeline::{
-        calibrate_views, disc_fallback_rejects, no_calibration, views_from_windows, Outcome, PipelineError, Setup,
-        Views,
+        calibrate_views, calibrate_with_disc_fallback, no_calibration, views_from_windows, Chosen, DiscFallback,
+        NoCalibration, Outcome, PipelineError, Setup, Views,
     },
     views::grid::Pattern,
 };
@@ -276,16 +276,16 @@ fn calibrate(
         );
     }
     let views = find_views(&windows, &setup, a.quiet);
-    let result = calibrate_views(&views, &setup);
     let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
-        with_discs_if_rings_failed(a, &setup, views, result)?
+        with_discs_if_rings_failed(a, &setup, views)?
     } else {
+        let result = calibrate_views(&views, &setup);
         if !from_events && !a.quiet {
             if let Some(why) = no_calibration(&result) {
                 // Detections cannot be fitted again here; the events they came from can.
                 eprintln!(
                     "evcal: no calibration from these detections ({}); if they were made in dim light without --filled-discs, detecting the recording again with it (evcal detect or replay --filled-discs) may give one",
-                    first_clause(&why)
+                    why.summary()
                 );
             }
         }
@@ -331,68 +331,44 @@ fn indent(s: &str) -> String {
     s.lines().map(|l| format!("    {l}")).collect::<Vec<_>>().join("\n")
 }
 
-/// The views and the calibration from filled discs where no ring fits, when the rings alone
-/// gave no calibration (`result`) and the discs give one that
-/// [`disc_fallback_rejects`] takes; `views` and `result` otherwise. The recording is
+/// The rings' views and calibration, or the filled discs' where the rings give none
+/// ([`calibrate_with_disc_fallback`]), each step said on standard error. The recording is
 /// detected again, so only a regular file can be.
 fn with_discs_if_rings_failed(
     a: &CalibrateArgs,
     setup: &Setup,
     views: Views,
-    result: Result<Outcome, PipelineError>,
 ) -> Result<(Views, Result<Outcome, PipelineError>)> {
-    let Some(why) = no_calibration(&result) else { return Ok((views, result)) };
-    let why = first_clause(&why).to_string();
-    // Standard input or a pipe was read once and is gone.
-    if !std::fs::metadata(&a.input).is_ok_and(|m| m.is_file()) {
+    let discs = |why: &NoCalibration| -> Result<Option<Views>> {
+        // Standard input or a pipe was read once and is gone.
+        if !std::fs::metadata(&a.input).is_ok_and(|m| m.is_file()) {
+            return Ok(None);
+        }
+        // Where a dark circle's slow pixels fill it, only its outline is a circle.
         if !a.quiet {
             eprintln!(
-                "evcal: no calibration from ring fits alone ({why}); a recording read from a stream cannot be detected again with filled discs: run again on it with --filled-discs"
+                "evcal: no calibration from ring fits alone ({}); detecting again with filled discs where no ring fits (--no-filled-discs not to)",
+                why.summary()
             );
         }
-        return Ok((views, result));
-    }
-    // Where a dark circle's slow pixels fill it, only its outline is a circle.
+        let (discs, _) = detect(a, true, None)?;
+        Ok(Some(find_views(&discs, setup, a.quiet)))
+    };
+    let Chosen { views, result, fallback } = calibrate_with_disc_fallback(views, setup, discs)?;
     if !a.quiet {
-        eprintln!(
-            "evcal: no calibration from ring fits alone ({why}); detecting again with filled discs where no ring fits (--no-filled-discs not to)"
-        );
-    }
-    let (discs, _) = detect(a, true, None)?;
-    let disc_views = find_views(&discs, setup, a.quiet);
-    let disc_result = calibrate_views(&disc_views, setup);
-    if let Some(no) = disc_fallback_rejects(&disc_result) {
-        if !a.quiet {
-            eprintln!("evcal: filled discs gave no calibration either ({})", first_clause(&no));
-        }
-        return Ok((views, result));
-    }
-    if !a.quiet {
-        eprintln!("evcal: filled discs: {}", disc_views.stats.summary());
-    }
-    // Among the calibration's warnings, so that calibration.json says it too.
-    let disc_result = disc_result.map(|mut o| {
-        o.calibration.warnings.push(format!(
-            "circles fitted as filled discs where no ring fitted: the rings alone gave no calibration ({why}); a disc's centre is less sure than a ring's, so more light (or a faster photoreceptor bias) gives a better calibration"
-        ));
-        o
-    });
-    Ok((disc_views, disc_result))
-}
-
-/// The first clause of a reason (up to its first colon or semicolon outside brackets), for
-/// a one-line note.
-fn first_clause(why: &str) -> &str {
-    let mut depth = 0i32;
-    for (i, c) in why.char_indices() {
-        match c {
-            '(' => depth += 1,
-            ')' => depth -= 1,
-            ':' | ';' if depth <= 0 => return why[..i].trim(),
-            _ => {}
+        match &fallback {
+            DiscFallback::NotNeeded => {}
+            DiscFallback::NotTried { rings_failed } => eprintln!(
+                "evcal: no calibration from ring fits alone ({}); a recording read from a stream cannot be detected again with filled discs: run again on it with --filled-discs",
+                rings_failed.summary()
+            ),
+            DiscFallback::Rejected { why, .. } => {
+                eprintln!("evcal: filled discs gave no calibration either ({})", why.summary())
+            }
+            DiscFallback::Taken { .. } => eprintln!("evcal: filled discs: {}", views.stats.summary()),
         }
     }
-    why.trim()
+    Ok((views, result))
 }
 
 /// Runs the detection core over the recording, fitting filled discs where no ring fits when
@@ -603,23 +579,8 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
     for w in c.warnings.iter().chain(&o.advice) {
         outln!("warning: {w}")?;
     }
-    Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::first_clause;
-
-    #[test]
-    fn a_reason_is_cut_at_its_first_clause_outside_brackets() {
-        assert_eq!(
-            first_clause("grid found in 0 of 240 windows (not found: 240 too few centres): check --pattern"),
-            "grid found in 0 of 240 windows (not found: 240 too few centres)"
-        );
-        assert_eq!(
-            first_clause("1 usable view(s) of the target; a calibration needs at least 3"),
-            "1 usable view(s) of the target"
-        );
-        assert_eq!(first_clause(" no separator "), "no separator");
+    if let Some(w) = &o.weak_focal {
+        outln!("warning: {w}")?;
     }
+    Ok(())
 }

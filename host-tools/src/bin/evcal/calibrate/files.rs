@@ -60,7 +60,8 @@ pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Re
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
-    e.failure = o.failure.as_deref();
+    let failure = o.failure.as_ref().map(ToString::to_string);
+    e.failure = failure.as_deref();
     e.json_copy = json;
     let written = write_all(dir, &e)?;
     Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
