@@ -123,12 +123,15 @@ pub struct Export<'a> {
     pub calibration_time: Option<&'a str>,
     /// The shift taken out of the centres before the solve, for the JSON result.
     pub edge_shift: Option<crate::views::edge_shift::EdgeShift>,
-    /// Why the result is no calibration ([`crate::pipeline::verdict`]): every file says so
-    /// (the JSON's `calibration_failed`, a comment at the top of each YAML file).
+    /// Why the result is no calibration ([`crate::pipeline::verdict`]): then the files are
+    /// [`FAILED_FILE_NAMES`], none a program would load as a calibration (the JSON under
+    /// another name with its `calibration_failed`, each YAML file's entries commented out
+    /// below `calibration_failed`, so no `camera_matrix`; the report stamped), and
+    /// `json_copy` is not written.
     pub failure: Option<&'a str>,
     /// Another file to write the JSON result to (`evcal calibrate --json`), with the others:
     /// all are in place or none is replaced. Nothing more when it is the folder's own
-    /// `calibration.json`.
+    /// `calibration.json`; nothing at all for a failed run (see `failure`).
     pub json_copy: Option<&'a Path>,
 }
 
@@ -163,18 +166,42 @@ impl<'a> Export<'a> {
 }
 
 /// What [`write_all`] did.
-#[derive(Debug, Clone, PartialEq, Default)]
+#[derive(Debug, Default)]
 pub struct Written {
-    /// The files written, in the order of [`FILE_NAMES`].
+    /// The files written, in the order of [`FILE_NAMES`] (or [`FAILED_FILE_NAMES`]).
     pub paths: Vec<PathBuf>,
     /// What the user should know about the exports (also in the JSON's `warnings`).
     pub warnings: Vec<String>,
+    /// The other outcome's files an earlier run left in the folder (a calibration's beside
+    /// a failed run's, or the reverse), removed so that none is taken for this run's; and
+    /// those that were left (see [`remove_stale`]).
+    pub stale: Stale,
 }
 
-/// The files [`write_all`] writes, in order: JSON result, OpenCV YAML, ROS `camera_info`,
-/// Kalibr camchain, report.
+/// The files [`write_all`] writes for a calibration, in order: JSON result, OpenCV YAML, ROS
+/// `camera_info`, Kalibr camchain, report.
 pub const FILE_NAMES: [&str; 5] =
     ["calibration.json", "opencv.yaml", "camera_info.yaml", "kalibr_camchain.yaml", "report.png"];
+
+/// The files [`write_all`] writes for a result that is no calibration, in the order of
+/// [`FILE_NAMES`]: named so that no program looking for a calibration's file finds one.
+pub const FAILED_FILE_NAMES: [&str; 5] = [
+    "calibration.failed.json",
+    "opencv.failed.yaml",
+    "camera_info.failed.yaml",
+    "kalibr_camchain.failed.yaml",
+    "report.failed.png",
+];
+
+/// The files [`write_all`] writes for a calibration (`failed` false) or for a result that is
+/// none.
+pub const fn file_names(failed: bool) -> [&'static str; 5] {
+    if failed {
+        FAILED_FILE_NAMES
+    } else {
+        FILE_NAMES
+    }
+}
 
 /// Writes every export into `dir` (made if missing) under the names of [`FILE_NAMES`];
 /// returns the paths and the warnings. Every error names the file it concerns.
@@ -197,25 +224,26 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     let json = serde_json::to_string_pretty(&json)? + "\n";
 
     let path = |name: &str| dir.join(name);
-    let mut written = Written { paths: Vec::with_capacity(FILE_NAMES.len()), warnings };
+    let names = file_names(export.failure.is_some());
+    let mut written = Written { paths: Vec::with_capacity(names.len()), warnings, stale: Stale::default() };
     let mut texts =
         [json, opencv_yaml(cal, export.calibration_time), camera_info_yaml(cal, export.camera_name), kalibr];
     if let Some(why) = export.failure {
         for t in &mut texts[1..] {
-            *t = marked_not_a_calibration(t, why);
+            *t = not_a_calibration(t, why);
         }
     }
     for t in &mut texts[1..] {
         t.push_str(&yaml_mark());
     }
-    let report = path(FILE_NAMES[4]);
-    let png = render_report(&report, cal, export.views, export.origins, export.timeline)?;
+    let report = path(names[4]);
+    let png = render_report(&report, cal, export.views, export.origins, export.timeline, export.failure)?;
     let mut contents: Vec<(PathBuf, &[u8])> =
-        FILE_NAMES.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
+        names.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
     contents.push((report, &png));
     // Every file written before any is put in place.
     let mut staged = Vec::with_capacity(contents.len() + 1);
-    let copy = export.json_copy.filter(|j| !atomic::same_file(j, &contents[0].0));
+    let copy = export.json_copy.filter(|j| export.failure.is_none() && !atomic::same_file(j, &contents[0].0));
     for (p, bytes) in contents.iter().map(|(p, b)| (p.as_path(), *b)).chain(copy.map(|j| (j, texts[0].as_bytes()))) {
         let mut f = atomic::AtomicFile::create(p)?;
         std::io::Write::write_all(&mut f, bytes).map_err(io_at(p, "cannot write"))?;
@@ -225,6 +253,11 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
         f.commit()?;
     }
     written.paths.extend(contents.into_iter().map(|(p, _)| p));
+    // The other outcome's files, and for a failed run the `--json` copy, are an earlier
+    // run's: a program would take a calibration's for this run's.
+    let other = file_names(export.failure.is_none());
+    let stale_copy = export.json_copy.filter(|_| export.failure.is_some());
+    written.stale = stale::remove_named(dir, &other, stale_copy);
     Ok(written)
 }
 
@@ -233,14 +266,27 @@ fn yaml_mark() -> String {
     format!("{YAML_MARK} {}\n", env!("CARGO_PKG_VERSION"))
 }
 
-/// `yaml` with a comment saying it is no calibration, and why: after OpenCV's `%YAML`
-/// directive (which must come first), else at the top.
-fn marked_not_a_calibration(yaml: &str, why: &str) -> String {
-    let note = format!("# NOT A CALIBRATION: {}\n", why.replace('\n', " "));
-    match yaml.split_once('\n') {
-        Some((first, rest)) if first.starts_with("%YAML") => format!("{first}\n{note}{rest}"),
-        _ => note + yaml,
+/// `yaml` as a failed run writes it: OpenCV's directive and document start as they are
+/// (they must come first), then why it is no calibration, as a comment and as the entry
+/// `calibration_failed`, then every other line commented out. A reader finds no
+/// `camera_matrix` (nor `K`, nor `intrinsics`), and a person still reads the estimate.
+fn not_a_calibration(yaml: &str, why: &str) -> String {
+    let why = why.replace('\n', " ");
+    let mut out = String::with_capacity(yaml.len() + why.len() + 64);
+    let mut lines = yaml.lines().peekable();
+    while let Some(l) = lines.next_if(|l| l.starts_with("%YAML") || *l == "---") {
+        out.push_str(l);
+        out.push('\n');
     }
+    // A JSON string is a YAML double-quoted scalar, escapes and all.
+    let quoted = serde_json::to_string(&why).unwrap_or_else(|_| "\"\"".into());
+    out.push_str(&format!("# NOT A CALIBRATION: {why}\ncalibration_failed: {quoted}\n"));
+    for l in lines {
+        out.push_str("# ");
+        out.push_str(l);
+        out.push('\n');
+    }
+    out
 }
 
 #[cfg(test)]
@@ -295,27 +341,65 @@ mod test {
         assert_eq!(json.detections, views.len() as u64);
     }
 
-    /// A result that is no calibration says so in every file, and OpenCV's YAML still
-    /// starts with its directive.
+    /// A failed run's files: named apart, none a program would load as a calibration
+    /// (OpenCV's FileStorage finds no `camera_matrix`, PyYAML no `K` nor `cam0`), each saying
+    /// why; an earlier run's calibration and its `--json` copy removed, and the failed run's
+    /// files removed in turn by a calibration.
     #[test]
-    fn a_failed_calibration_is_marked_in_every_file() {
+    fn a_failed_run_writes_no_file_a_program_loads_as_a_calibration() {
         let (views, cal, origins, timeline) = setup(&TRUTH, false);
         let dir = tempfile::tempdir().unwrap();
-        let why = "the views do not fix the camera: fx ±127.0 % (1σ)";
-        let export = Export { failure: Some(why), ..Export::new(&cal, &views, &origins, &timeline) };
-        let written = write_all(dir.path(), &export).unwrap();
+        let copy = dir.path().join("cam0.json");
+        let good = Export { json_copy: Some(&copy), ..Export::new(&cal, &views, &origins, &timeline) };
+        write_all(dir.path(), &good).unwrap();
+        let why = "the views do not fix the camera: fx ±127.0 % (1σ), \"quoted\"";
+        let failed = Export { failure: Some(why), ..good };
+        let written = write_all(dir.path(), &failed).unwrap();
+        let sorted = |names: &[&str]| {
+            let mut v: Vec<String> = names.iter().map(|n| n.to_string()).collect();
+            v.sort();
+            v
+        };
+        let in_folder = || {
+            let mut v: Vec<String> =
+                std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name().into_string().unwrap()).collect();
+            v.sort();
+            v
+        };
+        assert_eq!(written.paths, FAILED_FILE_NAMES.iter().map(|n| dir.path().join(n)).collect::<Vec<_>>());
+        assert_eq!(in_folder(), sorted(&FAILED_FILE_NAMES));
+        assert_eq!(written.stale.removed.len(), FILE_NAMES.len() + 1, "{:?}", written.stale);
         let json: ResultJson = serde_json::from_slice(&std::fs::read(&written.paths[0]).unwrap()).unwrap();
         assert_eq!(json.calibration_failed.as_deref(), Some(why));
+        for p in &written.paths {
+            assert!(written_by_evcal(p), "{}", p.display());
+        }
         for p in &written.paths[1..4] {
             let text = std::fs::read_to_string(p).unwrap();
-            let note = format!("# NOT A CALIBRATION: {why}\n");
-            match text.strip_prefix("%YAML:1.0\n") {
-                Some(rest) => assert!(rest.starts_with(&note), "{}: {text}", p.display()),
-                None => assert!(text.starts_with(&note), "{}: {text}", p.display()),
+            assert!(text.contains(&format!("# NOT A CALIBRATION: {why}\n")), "{}: {text}", p.display());
+            // Only the directive, the document start and `calibration_failed` are entries.
+            for l in text.lines().filter(|l| !l.starts_with('#')) {
+                assert!(
+                    l.starts_with("%YAML") || l == "---" || l.starts_with("calibration_failed: "),
+                    "{}: {l}",
+                    p.display()
+                );
             }
         }
-        // A calibration is not marked.
+        let cv = "import cv2, sys\nfs = cv2.FileStorage(sys.argv[1], cv2.FILE_STORAGE_READ)\nprint(fs.getNode('camera_matrix').empty(), fs.getNode('calibration_failed').string())";
+        if let Some(out) = yaml::test::python("cv2", "opencv-python-headless", cv, &written.paths[1]) {
+            assert_eq!(out.trim(), format!("True {why}"));
+        }
+        let py = "import yaml, sys\nd = yaml.safe_load(open(sys.argv[1]))\nprint(sorted(d))";
+        for p in &written.paths[2..4] {
+            if let Some(out) = yaml::test::python("yaml", "PyYAML", py, p) {
+                assert_eq!(out.trim(), "['calibration_failed']", "{}", p.display());
+            }
+        }
+        // A calibration then: the failed run's files go.
         let written = write_all(dir.path(), &Export::new(&cal, &views, &origins, &timeline)).unwrap();
+        assert_eq!(in_folder(), sorted(&FILE_NAMES));
+        assert_eq!(written.stale.removed.len(), FAILED_FILE_NAMES.len());
         let json: ResultJson = serde_json::from_slice(&std::fs::read(&written.paths[0]).unwrap()).unwrap();
         assert_eq!(json.calibration_failed, None);
         assert!(!std::fs::read_to_string(&written.paths[1]).unwrap().contains("NOT A CALIBRATION"));

@@ -60,16 +60,18 @@ fn font_ready() -> std::result::Result<(), String> {
 
 /// Draws the report of `cal` into a PNG at `path` ([`REPORT_SIZE`]). `views` are the views
 /// given to the solver, `origins` where each came from (used to mark the views on the
-/// timeline; may be empty), `timeline` every detection window (may be empty). Written to a
-/// temporary file renamed over `path` ([`super::atomic`]).
+/// timeline; may be empty), `timeline` every detection window (may be empty); `failure`, why
+/// the result is no calibration, stamps the report with it. Written to a temporary file
+/// renamed over `path` ([`super::atomic`]).
 pub fn write_report(
     path: &Path,
     cal: &Calibration,
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
+    failure: Option<&str>,
 ) -> Result<()> {
-    let png = render_report(path, cal, views, origins, timeline)?;
+    let png = render_report(path, cal, views, origins, timeline, failure)?;
     Ok(super::atomic::write_file(path, &png)?)
 }
 
@@ -82,9 +84,14 @@ pub fn render_report(
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
+    failure: Option<&str>,
 ) -> Result<Vec<u8>> {
-    render(cal, views, origins, timeline).map_err(|message| ExportError::Report { path: path.to_path_buf(), message })
+    render(cal, views, origins, timeline, failure)
+        .map_err(|message| ExportError::Report { path: path.to_path_buf(), message })
 }
+
+/// The most characters of a failed run's stamp: a line across the report.
+const STAMP_CHARS: usize = 150;
 
 /// The start of the `Software` text of every report: how [`super::remove_stale`] knows one.
 pub const PNG_SOFTWARE: &str = "evcal";
@@ -94,6 +101,7 @@ fn render(
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
+    failure: Option<&str>,
 ) -> std::result::Result<Vec<u8>, String> {
     font_ready()?;
     let res = view_residuals(views, cal).map_err(|e| e.to_string())?;
@@ -101,7 +109,7 @@ fn render(
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        draw(&root, cal, views, &res, origins, timeline).map_err(|e| e.to_string())?;
+        draw(&root, cal, views, &res, origins, timeline, failure).map_err(|e| e.to_string())?;
         root.present().map_err(|e| e.to_string())?;
     }
     let mut out = Vec::new();
@@ -126,10 +134,21 @@ fn draw(
     res: &[Vec<[f64; 2]>],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
+    failure: Option<&str>,
 ) -> DrawResult {
     root.fill(&WHITE)?;
     // Room above the title, which plotters sets almost against the edge.
     let root = root.margin(10, 0, 0, 0);
+    // A failed run's report says so first, in red, so that no one takes its figures for a
+    // calibration's.
+    let root = match failure {
+        Some(why) => {
+            let stamp = format!("NOT A CALIBRATION: {}", why.replace('\n', " "));
+            let stamp: String = stamp.chars().take(STAMP_CHARS).collect();
+            root.titled(&stamp, (FAMILY, 26).into_font().color(&RED))?
+        }
+        None => root,
+    };
     let k = &cal.intrinsics;
     let points: usize = cal.views.iter().map(|v| v.points).sum();
     let title = format!(
@@ -429,7 +448,7 @@ mod test {
         let (views, cal, origins, timeline) = setup(&TRUTH, false);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("report.png");
-        write_report(&path, &cal, &views, &origins, &timeline).unwrap();
+        write_report(&path, &cal, &views, &origins, &timeline, None).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
         let img = decode(&bytes);
@@ -450,17 +469,17 @@ mod test {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("report.png");
         // No timeline and no origins: the panels are drawn empty.
-        write_report(&path, &cal, &views, &[], &[]).unwrap();
+        write_report(&path, &cal, &views, &[], &[], None).unwrap();
         assert_eq!((decode(&std::fs::read(&path).unwrap()).0), REPORT_SIZE.0);
         // One window only; non-finite times are left out.
         let one = [
             WindowSample { t_s: 1.0, centres: 0, grid_found: false },
             WindowSample { t_s: f64::NAN, centres: 3, grid_found: true },
         ];
-        write_report(&path, &cal, &views, &[], &one).unwrap();
+        write_report(&path, &cal, &views, &[], &one, None).unwrap();
         // A directory that does not exist: an error naming the file, nothing written.
         let bad = dir.path().join("missing/report.png");
-        let e = format!("{:#}", write_report(&bad, &cal, &views, &[], &[]).unwrap_err());
+        let e = format!("{:#}", write_report(&bad, &cal, &views, &[], &[], None).unwrap_err());
         assert!(e.contains("missing/report.png"), "{e}");
     }
 

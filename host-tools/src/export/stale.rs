@@ -2,7 +2,7 @@
 //! folder that holds yesterday's files must not leave them looking like today's result.
 //! Only files evcal can tell it wrote are removed; links are never touched.
 
-use super::{report::PNG_SOFTWARE, FILE_NAMES};
+use super::{report::PNG_SOFTWARE, FAILED_FILE_NAMES, FILE_NAMES};
 use std::{
     fs,
     io::Read,
@@ -35,12 +35,19 @@ pub struct Stale {
     pub failed: Vec<(PathBuf, std::io::Error)>,
 }
 
-/// Removes the results an earlier run left in `dir` ([`FILE_NAMES`]) and at `json` (the
-/// `--json` copy), for a run that ends without writing its own. Each file is removed only
-/// when [`written_by_evcal`] knows it.
+/// Removes the results an earlier run left in `dir` (a calibration's, [`FILE_NAMES`], and a
+/// failed run's, [`FAILED_FILE_NAMES`]) and at `json` (the `--json` copy), for a run that
+/// ends without writing its own. Each file is removed only when [`written_by_evcal`] knows
+/// it.
 pub fn remove_stale(dir: &Path, json: Option<&Path>) -> Stale {
+    let names: Vec<&str> = FILE_NAMES.iter().chain(&FAILED_FILE_NAMES).copied().collect();
+    remove_named(dir, &names, json)
+}
+
+/// [`remove_stale`] of the files `names` in `dir`, and `json`.
+pub(super) fn remove_named(dir: &Path, names: &[&str], json: Option<&Path>) -> Stale {
     let mut s = Stale::default();
-    let named = FILE_NAMES.iter().map(|n| dir.join(n)).chain(json.map(Path::to_path_buf));
+    let named = names.iter().map(|n| dir.join(n)).chain(json.map(Path::to_path_buf));
     for p in named {
         // Nothing there, or the same file twice (--json naming the folder's own).
         if fs::symlink_metadata(&p).is_err() || s.removed.contains(&p) {

@@ -137,7 +137,7 @@ pub fn kalibr_camchain_yaml(cal: &Calibration, rostopic: &str) -> (String, Vec<S
 }
 
 #[cfg(test)]
-mod test {
+pub(super) mod test {
     use super::super::testdata::*;
     use super::*;
     use std::path::Path;
@@ -250,7 +250,7 @@ mod test {
     /// Runs `script` with `python3` on `file`; its stdout. `None` when the user skips the
     /// Python checks (EVCAL_SKIP_PYTHON=1); a failure naming scripts/setup.sh when `module`
     /// is not installed.
-    fn python(module: &str, package: &str, script: &str, file: &Path) -> Option<String> {
+    pub(in crate::export) fn python(module: &str, package: &str, script: &str, file: &Path) -> Option<String> {
         if std::env::var("EVCAL_SKIP_PYTHON").is_ok_and(|v| v == "1") {
             eprintln!("\n!!!!!!!! SKIPPED (EVCAL_SKIP_PYTHON=1): reading the export back with Python's {module}\n");
             return None;

@@ -321,7 +321,10 @@ pub const EXIT_NO_CALIBRATION: i32 = 3;
 /// Ends the process with [`EXIT_NO_CALIBRATION`] and the reason when `o` is no calibration.
 pub fn fail_if_no_calibration(o: &Outcome, out: &Path) -> Result<()> {
     if let Some(why) = &o.failure {
-        eprintln!("evcal: calibration failed: {why}. The files in {} are marked as not a calibration.", out.display());
+        eprintln!(
+            "evcal: calibration failed: {why}. The files in {} are named *.failed.* and hold no camera matrix a program would load (no --json copy is written).",
+            out.display()
+        );
         std::process::exit(EXIT_NO_CALIBRATION);
     }
     Ok(())

@@ -4,7 +4,7 @@
 use crate::common::{check_output, outln};
 use anyhow::{bail, Result};
 use evcal_host::{
-    export::{atomic, remove_stale, write_all, Export, FILE_NAMES},
+    export::{atomic, remove_stale, write_all, Export, Stale, FAILED_FILE_NAMES, FILE_NAMES},
     pipeline::{Outcome, Views},
 };
 use std::path::{Path, PathBuf};
@@ -17,13 +17,13 @@ pub fn check_outputs(out: &Path, json: Option<&Path>, inputs: &[(&str, &Path)]) 
         bail!("--out {}: exists and is not a folder", out.display());
     }
     if out.is_dir() {
-        for name in FILE_NAMES {
+        for name in FILE_NAMES.iter().chain(&FAILED_FILE_NAMES) {
             check_output(&out.join(name), "--out", inputs)?;
         }
     }
     if let Some(j) = json {
         check_output(j, "--json", inputs)?;
-        for name in &FILE_NAMES[1..] {
+        for name in FILE_NAMES[1..].iter().chain(&FAILED_FILE_NAMES) {
             if atomic::same_file(j, &out.join(name)) {
                 bail!("--json {}: is --out's {name}, which calibrate writes too; give another name", j.display());
             }
@@ -36,20 +36,21 @@ pub fn check_outputs(out: &Path, json: Option<&Path>, inputs: &[(&str, &Path)]) 
 /// which would otherwise be taken for this run's, and says so. Files evcal cannot tell it
 /// wrote are left, also said.
 pub fn say_stale_removed(out: &Path, json: Option<&Path>, quiet: bool) {
-    let s = remove_stale(out, json);
+    say_stale(&remove_stale(out, json), "as this run gives none", quiet);
+}
+
+/// Says what was done with an earlier run's results (`why` they went).
+fn say_stale(s: &Stale, why: &str, quiet: bool) {
     let list = |v: &[PathBuf]| v.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", ");
     if !s.removed.is_empty() {
         // Said even with --quiet: files went away.
-        eprintln!("evcal: removed an earlier run's results, as this run gives none: {}", list(&s.removed));
+        eprintln!("evcal: removed an earlier run's results, {why}: {}", list(&s.removed));
     }
     if !s.left.is_empty() && !quiet {
         eprintln!("evcal: note: left as they are (not known to be written by evcal): {}", list(&s.left));
     }
     for (p, e) in &s.failed {
-        eprintln!(
-            "evcal: warning: {}: an earlier run's result, and this run gives none, but it cannot be removed: {e}",
-            p.display()
-        );
+        eprintln!("evcal: warning: {}: an earlier run's result, {why}, but it cannot be removed: {e}", p.display());
     }
 }
 
@@ -64,7 +65,15 @@ pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Re
     e.failure = failure.as_deref();
     e.json_copy = json;
     let written = write_all(dir, &e)?;
-    Ok(Written { files: written, json: json.map(Path::to_path_buf), without_k3: o.without_k3.is_some() })
+    let why = if o.failure.is_some() {
+        "as this run gives no calibration"
+    } else {
+        "a failed run's, as this run gives a calibration"
+    };
+    say_stale(&written.stale, why, false);
+    // A failed run writes no file under a calibration's name, the --json copy neither.
+    let json = json.filter(|_| o.failure.is_none()).map(Path::to_path_buf);
+    Ok(Written { files: written, json, without_k3: o.without_k3.is_some() })
 }
 
 /// What [`export`] wrote, to list after the report.
