@@ -276,6 +276,23 @@ fn calibrate(
         );
     }
     let views = find_views(&windows, &setup, a.quiet);
+    if views.stats.found == 0 {
+        if let Some(found) = transposed_finds(&windows, &setup) {
+            bail!(
+                "{}: no grid found with --pattern {}x{}, but with --pattern {}x{} (rows and columns the other way round) in {} of {} windows tried: run again with --pattern {}x{} (ROWSxCOLS: the rows are the lines of {} circles, see --help)",
+                a.input.display(),
+                pattern.rows,
+                pattern.cols,
+                pattern.cols,
+                pattern.rows,
+                found.0,
+                found.1,
+                pattern.cols,
+                pattern.rows,
+                pattern.rows
+            );
+        }
+    }
     let (views, result) = if from_events && !a.core.filled_discs && !a.no_filled_discs {
         with_discs_if_rings_failed(a, &setup, views)?
     } else {
@@ -439,6 +456,27 @@ pub fn find_views(windows: &[WindowRecord], setup: &Setup, quiet: bool) -> Views
     let views = views_from_windows(windows, setup, &|n| pb.set_position(n as u64));
     pb.finish_and_clear();
     views
+}
+
+/// Windows [`transposed_finds`] looks at: enough to find a grid that is in view a tenth of
+/// the time, few enough to cost a second or two on a run that failed anyway.
+const TRANSPOSED_WINDOWS: usize = 120;
+
+/// When `setup`'s pattern found no grid: in how many of up to [`TRANSPOSED_WINDOWS`] of
+/// `windows` (evenly spread) the pattern with rows and columns swapped is found, and how many
+/// were tried, if in any; `None` for a square pattern, or one that cannot be swapped.
+fn transposed_finds(windows: &[WindowRecord], setup: &Setup) -> Option<(usize, usize)> {
+    let p = setup.pattern;
+    if p.rows == p.cols {
+        return None;
+    }
+    let swapped = Pattern::new(p.cols, p.rows, p.spacing).ok()?;
+    let step = windows.len().div_ceil(TRANSPOSED_WINDOWS).max(1);
+    let sample: Vec<WindowRecord> = windows.iter().step_by(step).cloned().collect();
+    // Each window alone: the pattern is the question, not how windows follow one another.
+    let setup = Setup { pattern: swapped, track: None, ..setup.clone() };
+    let views = views_from_windows(&sample, &setup, &|_| {});
+    (views.stats.found > 0).then_some((views.stats.found, sample.len()))
 }
 
 /// Chooses views and solves.

@@ -479,3 +479,35 @@ fn simulate_follows_recorded_poses_and_refuses_bad_ones() {
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("cannot be used with"), "{err}");
 }
+
+/// Before: a pattern given with its rows and columns the other way round (`--pattern 11x4`
+/// for a 4x11 board) ended in "no grid found" after detecting the recording again with filled
+/// discs; now the run tries the swapped pattern on a sample of windows and names it.
+#[test]
+fn a_pattern_the_other_way_round_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("cone.txt");
+    let out = dir.path().join("out");
+    let (code, _, err) = evcal(&[
+        "simulate",
+        "--sensor",
+        "davis346",
+        "--pattern",
+        "4x11",
+        "--seconds",
+        "0.4",
+        "--out",
+        s(&rec),
+        "--truth",
+        s(&dir.path().join("truth.json")),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let (code, _, err) = evcal(&["calibrate", s(&rec), "--pattern", "11x4", "--spacing", "0.024", "--out", s(&out)]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("run again with --pattern 4x11"), "{err}");
+    assert!(!err.contains("filled discs"), "the discs were tried first: {err}");
+    // A square pattern has no other way round: the usual error.
+    let (code, _, err) = evcal(&["calibrate", s(&rec), "--pattern", "5x5", "--spacing", "0.024", "--out", s(&out)]);
+    assert_ne!(code, Some(0), "{err}");
+    assert!(!err.contains("other way round"), "{err}");
+}
