@@ -28,6 +28,7 @@ pub mod atomic;
 mod json;
 mod report;
 mod stale;
+pub mod target;
 mod yaml;
 
 pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
