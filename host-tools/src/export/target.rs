@@ -92,12 +92,14 @@ pub enum TargetError {
         spacing: f64,
     },
     /// The target does not fit the paper in either orientation.
-    #[error("{}", does_not_fit(*pattern, *radius, *paper, *needs_mm, *largest_spacing))]
+    #[error("{}", does_not_fit(*pattern, *radius, *radius_given, *paper, *needs_mm, *largest_spacing))]
     DoesNotFit {
         /// The pattern.
         pattern: Pattern,
         /// The circles' radius, metres.
         radius: f64,
+        /// Whether the radius was given (else the default share of the spacing).
+        radius_given: bool,
         /// The largest paper tried.
         paper: Paper,
         /// The page the target needs (grid, margins, caption), mm.
@@ -108,7 +110,14 @@ pub enum TargetError {
     },
 }
 
-fn does_not_fit(pattern: Pattern, radius: f64, paper: Paper, needs: [f64; 2], largest: Option<f64>) -> String {
+fn does_not_fit(
+    pattern: Pattern,
+    radius: f64,
+    given: bool,
+    paper: Paper,
+    needs: [f64; 2],
+    largest: Option<f64>,
+) -> String {
     let dims = paper.portrait_mm().unwrap_or_default();
     let mut s = format!(
         "a {}x{} grid with spacing {} mm and circle diameter {} mm needs {} x {} mm with its white margin and caption; {} ({} x {} mm) holds it in neither orientation",
@@ -123,8 +132,10 @@ fn does_not_fit(pattern: Pattern, radius: f64, paper: Paper, needs: [f64; 2], la
         mm(dims[1]),
     );
     if let Some(sp) = largest {
-        let r = radius / pattern.spacing * sp;
-        let _ = write!(s, ": give --spacing {} or less (--radius {} alike)", metres(sp), metres(r));
+        let _ = write!(s, ": give --spacing {} or less", metres(sp));
+        if given {
+            let _ = write!(s, " (and --radius {} or less alike)", metres(radius / pattern.spacing * sp));
+        }
     }
     if paper != Paper::A3 {
         s.push_str(", a larger --paper (a3)");
@@ -156,12 +167,13 @@ struct Block {
 }
 
 impl Sheet {
-    /// Lays out `pattern` with circles of `radius` metres (default [`RADIUS_SHARE`]·S,
-    /// rounded to 0.01 mm) on `paper`, or on the first of [`Paper::DEFAULTS`] that holds it.
+    /// Lays out `pattern` with circles of `radius` metres (default [`default_radius`]) on
+    /// `paper`, or on the first of [`Paper::DEFAULTS`] that holds it.
     /// Portrait is taken when it holds the target, else landscape.
     pub fn new(pattern: Pattern, radius: Option<f64>, paper: Option<Paper>) -> Result<Self, TargetError> {
         let spacing = pattern.spacing;
-        let radius = radius.unwrap_or((RADIUS_SHARE * spacing * 1e5).round() / 1e5);
+        let radius_given = radius.is_some();
+        let radius = radius.unwrap_or(default_radius(spacing));
         if !(radius.is_finite() && radius > 0.0 && radius < spacing * std::f64::consts::FRAC_1_SQRT_2) {
             return Err(TargetError::Radius { radius, spacing });
         }
@@ -190,9 +202,10 @@ impl Sheet {
         Err(TargetError::DoesNotFit {
             pattern,
             radius,
+            radius_given,
             paper,
             needs_mm: block.size,
-            largest_spacing: largest_spacing(&pattern, radius / spacing, paper),
+            largest_spacing: largest_spacing(&pattern, radius_given.then_some(radius / spacing), paper),
         })
     }
 
@@ -400,14 +413,22 @@ fn place(paper: Paper, need: [f64; 2]) -> Option<([f64; 2], bool)> {
     }
 }
 
-/// The largest spacing, in 0.1 mm steps from 1 mm, whose target (radius `share`·S) fits
-/// `paper`.
-fn largest_spacing(pattern: &Pattern, share: f64, paper: Paper) -> Option<f64> {
+/// The radius drawn when none is given: [`RADIUS_SHARE`]·`spacing` rounded to 0.01 mm, so
+/// that the caption states what is drawn.
+pub fn default_radius(spacing: f64) -> f64 {
+    (RADIUS_SHARE * spacing * 1e5).round() / 1e5
+}
+
+/// The largest spacing, in 0.1 mm steps from 1 mm, whose target fits `paper`: radius
+/// `share`·S, or the default radius.
+fn largest_spacing(pattern: &Pattern, share: Option<f64>, paper: Paper) -> Option<f64> {
     let fits = |tenths: u32| {
         let s = f64::from(tenths) * 1e-4;
-        place(paper, block(&Pattern { spacing: s, ..*pattern }, share * s).size).is_some()
+        let r = share.map_or_else(|| default_radius(s), |k| k * s);
+        place(paper, block(&Pattern { spacing: s, ..*pattern }, r).size).is_some()
     };
-    let (mut lo, mut hi) = (10u32, (pattern.spacing * 1e4).ceil().max(11.0).min(1e7) as u32);
+    // The given spacing does not fit (nor, as every size grows with it, any larger one).
+    let (mut lo, mut hi) = (10u32, (pattern.spacing * 1e4).ceil().clamp(11.0, 1e7) as u32);
     if !fits(lo) {
         return None;
     }

@@ -182,8 +182,14 @@ fn a_board_too_large_says_the_spacing_that_fits() {
     assert_eq!(paper, Paper::A3);
     let text = e.to_string();
     assert!(text.contains(&format!("--spacing {}", metres(sp))) && text.contains("--paper fit"), "{text}");
-    let fits = |s: f64| Sheet::new(Pattern { spacing: s, ..p }, Some(RADIUS_SHARE * s), Some(Paper::A3)).is_ok();
+    let fits = |s: f64| Sheet::new(Pattern { spacing: s, ..p }, None, Some(Paper::A3)).is_ok();
     assert!(fits(sp) && !fits(sp + 1e-4), "{sp}");
+    assert!(!text.contains("--radius"), "no radius was given: {text}");
+    // A radius given is scaled with the spacing, and that fits too.
+    let e = Sheet::new(p, Some(0.01), None).unwrap_err();
+    let TargetError::DoesNotFit { largest_spacing: Some(sp), .. } = e.clone() else { panic!("{e:?}") };
+    assert!(e.to_string().contains(&format!("--radius {} or less", metres(0.2 * sp))), "{e}");
+    assert!(Sheet::new(Pattern { spacing: sp, ..p }, Some(0.2 * sp), None).is_ok());
     // On a named paper, the spacing for that paper, and a larger paper suggested.
     let e = Sheet::new(p, None, Some(Paper::A4)).unwrap_err().to_string();
     assert!(e.contains("A4 (210 x 297 mm)") && e.contains("--paper (a3)"), "{e}");
