@@ -40,6 +40,14 @@ fn writes_the_board_and_says_its_size() {
     assert!(svg.starts_with("<?xml") && svg.contains(r#"width="215.9mm""#), "{svg}");
     assert_eq!(svg.matches(r#" r="4""#).count(), 27);
     assert!(String::from_utf8_lossy(&out.stderr).contains("wrote standard output"));
+
+    // A PDF by its name.
+    let out = evcal(&["target", "--pattern", "4x11", "--spacing", "0.024", "--out", "board.PDF"], dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && err.contains("A3 landscape (420 x 297 mm)"), "{err}");
+    let pdf = std::fs::read(dir.path().join("board.PDF")).unwrap();
+    assert!(pdf.starts_with(b"%PDF-") && String::from_utf8_lossy(&pdf).contains("/MediaBox [0 0 1190.5"));
+    assert_eq!(names(dir.path()), ["board.PDF", "board.svg"]);
 }
 
 #[test]
@@ -64,7 +72,7 @@ fn bad_input_is_refused_and_nothing_written() {
         (with(2, "4-11"), "expected ROWSxCOLS"),
         (with(6, "folder.svg"), "--out folder.svg: is a directory"),
         (with(6, "."), "--out .: is a directory"),
-        (with(6, "board.png"), "give a name ending in .svg"),
+        (with(6, "board.png"), "give a name ending in .svg or .pdf"),
         (with(6, "missing/board.svg"), "the folder missing does not exist"),
         ([&base[..], &["--radius", "0.02"]].concat(), "below 0.0141 m (half the diagonal spacing"),
         ([&base[..], &["--radius", "NaN"]].concat(), "--radius NaN"),

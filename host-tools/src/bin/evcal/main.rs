@@ -123,7 +123,7 @@ evcal collect --port tcp:127.0.0.1:7878 --seconds 60 > detections.jsonl")]
     #[command(after_help = "Example (two terminals):\n  evcal device --listen 127.0.0.1:7878\n  \
 evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
     Device(device::DeviceArgs),
-    /// Write the asymmetric circle grid to print, as an SVG at true scale: black circles on
+    /// Write the asymmetric circle grid to print, as SVG or PDF at true scale: black circles on
     /// white, a white margin of a spacing around them, the pattern, spacing and diameter
     /// printed under it, and a 50 mm scale bar to check the print with a ruler.
     ///
@@ -133,7 +133,7 @@ evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
     /// scale bar, and give `evcal calibrate` the same --pattern, --spacing and --radius (the
     /// caption says them). Glue the print flat on a rigid board.
     #[command(after_help = "Examples:\n  evcal target --pattern 4x11 --spacing 0.02 --out board.svg\n  \
-evcal target --pattern 4x11 --spacing 0.024 --paper a3 --out board.svg\n  \
+evcal target --pattern 4x11 --spacing 0.024 --paper a3 --out board.pdf\n  \
 evcal target --pattern 3x9 --spacing 0.027 --radius 0.008 --paper letter --out board.svg\n\n\
 What --spacing means: S is the distance between neighbouring columns; circles in one column are \
 2·S apart and diagonal neighbours S·√2 (board point (i, j) at (i·S, (2j + i mod 2)·S)). It is \

@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use evcal_host::export::{
     atomic::AtomicFile,
-    target::{Paper, Sheet, RADIUS_SHARE},
+    board::{Paper, Sheet, RADIUS_SHARE},
 };
 use evcal_host::views::grid::Pattern;
 use std::{io::Write, path::PathBuf};
@@ -22,8 +22,9 @@ pub struct TargetArgs {
     /// with asymmetricGrid: true; give `evcal calibrate` the same --spacing.
     #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     pub spacing: f64,
-    /// The file to write: an SVG (.svg) at true scale (its size in mm), or `-` for standard
-    /// output. Replaced only once written whole.
+    /// The file to write, at true scale: an SVG (.svg; its size in mm) or a PDF (.pdf; one
+    /// page the paper's size), or `-` for the SVG on standard output. Replaced only once
+    /// written whole.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Radius of the circles, metres. Default: 0.3·S (a diameter of 0.6·S, as the
@@ -70,20 +71,23 @@ pub fn run(a: TargetArgs) -> Result<()> {
     check_output(&a.out, "--out", &[])?;
     let stdout = a.out.as_os_str() == "-";
     let ext = a.out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    if !stdout && ext.as_deref() != Some("svg") {
-        bail!(
-            "--out {}: the target is written as SVG: give a name ending in .svg (or - for standard output)",
+    let pdf = match ext.as_deref() {
+        _ if stdout => false,
+        Some("svg") => false,
+        Some("pdf") => true,
+        _ => bail!(
+            "--out {}: the target is written as SVG or PDF: give a name ending in .svg or .pdf (or - for SVG on standard output)",
             a.out.display()
-        );
-    }
+        ),
+    };
     let sheet = Sheet::new(pattern, a.radius, a.paper.map(Paper::from)).map_err(anyhow::Error::from)?;
-    let svg = sheet.svg();
+    let bytes = if pdf { sheet.pdf() } else { sheet.svg().into_bytes() };
     if stdout {
         let mut o = std::io::stdout().lock();
-        o.write_all(svg.as_bytes()).and_then(|()| o.flush()).map_err(crate::common::stdout_error)?;
+        o.write_all(&bytes).and_then(|()| o.flush()).map_err(crate::common::stdout_error)?;
     } else {
         let mut f = AtomicFile::create(&a.out)?;
-        f.write_all(svg.as_bytes()).with_context(|| format!("writing {}", a.out.display()))?;
+        f.write_all(&bytes).with_context(|| format!("writing {}", a.out.display()))?;
         f.commit()?;
     }
     let [w, h] = sheet.size_mm();

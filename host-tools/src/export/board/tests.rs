@@ -198,3 +198,38 @@ fn a_board_too_large_says_the_spacing_that_fits() {
     assert_eq!(own.paper_name(), "a page of its own size");
     assert!(own.size_mm()[0] > 500.0 + 100.0);
 }
+
+/// The PDF's page is the paper in points, and each circle's path starts a radius right of
+/// its board point (read back from the uncompressed content stream).
+#[test]
+fn the_pdf_is_the_same_page_at_true_scale() {
+    let s = sheet("4x11", 0.02);
+    let pdf = s.pdf();
+    let text = String::from_utf8_lossy(&pdf);
+    assert!(text.starts_with("%PDF-"));
+    let pt = 72.0 / 25.4;
+    let media = text.split("/MediaBox [").nth(1).expect("a MediaBox").split(']').next().unwrap();
+    let media: Vec<f64> = media.split_whitespace().map(|v| v.parse().unwrap()).collect();
+    assert_eq!(media.len(), 4);
+    assert!(media[0] == 0.0 && media[1] == 0.0);
+    assert!((media[2] - 297.0 * pt).abs() < 0.01 && (media[3] - 210.0 * pt).abs() < 0.01, "{media:?}");
+    // Path starts: `x y m`, one per circle, in the order of the board points.
+    let starts: Vec<[f64; 2]> = text
+        .lines()
+        .filter_map(|l| l.strip_suffix(" m"))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|v| v.parse().unwrap()).collect();
+            [v[0], v[1]]
+        })
+        .collect();
+    assert_eq!(starts.len(), s.pattern().len());
+    for (k, p) in starts.iter().enumerate() {
+        let [cx, cy] = s.centre_mm(k);
+        let want = [(cx + 6.0) * pt, (210.0 - cy) * pt];
+        assert!((p[0] - want[0]).abs() < 0.01 && (p[1] - want[1]).abs() < 0.01, "#{k}: {p:?} {want:?}");
+    }
+    assert!(text.contains("/BaseFont /Helvetica"));
+    assert!(text.contains(
+        "(evcal 4x11 asymmetric circle grid, spacing 20 mm, circle diameter 12 mm: print at 100 %, no fit-to-page) Tj"
+    ));
+}

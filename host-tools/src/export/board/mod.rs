@@ -5,11 +5,12 @@
 //! The layout is the [grid module's](crate::views::grid) convention, seen from the front:
 //! board point (i, j) at (i·S, (2j + i mod 2)·S) from the top left circle, x to the right and
 //! y down the page, so that the page looks like [`Pattern::picture`]. Units on the page are
-//! millimetres: the SVG's `viewBox` is in mm and its `width`/`height` say `mm`, so a viewer
-//! or printer at 100 % puts every circle where the calibration assumes it.
+//! millimetres: the SVG's `viewBox` is in mm and its `width`/`height` say `mm`, and the PDF's
+//! page is the paper in points ([`Sheet::pdf`]), so a viewer or printer at 100 % puts every
+//! circle where the calibration assumes it.
 //!
 //! ```
-//! use evcal_host::export::target::Sheet;
+//! use evcal_host::export::board::Sheet;
 //! use evcal_host::views::grid::Pattern;
 //! let sheet = Sheet::new(Pattern::parse("4x11", 0.02).unwrap(), None, None).unwrap();
 //! assert_eq!(sheet.paper_name(), "A4 landscape");
@@ -471,6 +472,6 @@ fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+mod pdf;
 #[cfg(test)]
-#[path = "target_tests.rs"]
 mod tests;
