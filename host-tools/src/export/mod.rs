@@ -1,6 +1,6 @@
 //! What a calibration leaves behind for the user's own stack: OpenCV's `cv::FileStorage`
 //! YAML, ROS's `camera_info` YAML, a Kalibr camchain, a JSON result for programs, and a PNG
-//! report for people.
+//! report for people. Before any of that, [`board`] lays out the grid to print.
 //!
 //! ```no_run
 //! use evcal_host::calib::{calibrate, Options, View};
@@ -25,6 +25,7 @@
 //! written with the shortest digits that read back to the same `f64`.
 
 pub mod atomic;
+pub mod board;
 mod json;
 mod report;
 mod stale;

@@ -12,3 +12,4 @@ mod golden_detect;
 mod hostile_input;
 mod info_cli;
 mod read_options;
+mod target;

@@ -15,6 +15,7 @@ mod info;
 mod ranges;
 mod replay;
 mod simulate;
+mod target;
 
 use clap::{Parser, Subcommand};
 
@@ -31,7 +32,8 @@ the sensor and here on the host.",
     after_help = "Examples:\n  evcal simulate --sensor davis346 --pattern 4x11 --seconds 5 --out rec.txt\n  \
 evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  \
 evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  \
-evcal calibrate detections.jsonl --sensor 346x260 --pattern 4x11 --spacing 0.024\n  evcal demo"
+evcal calibrate detections.jsonl --sensor 346x260 --pattern 4x11 --spacing 0.024\n  evcal demo\n  \
+evcal target --pattern 4x11 --spacing 0.02 --out board.svg"
 )]
 struct Cli {
     #[command(subcommand)]
@@ -121,6 +123,23 @@ evcal collect --port tcp:127.0.0.1:7878 --seconds 60 > detections.jsonl")]
     #[command(after_help = "Example (two terminals):\n  evcal device --listen 127.0.0.1:7878\n  \
 evcal replay rec.txt --port tcp:127.0.0.1:7878 > detections.jsonl")]
     Device(device::DeviceArgs),
+    /// Write the asymmetric circle grid to print, as SVG or PDF at true scale: black circles on
+    /// white, a white margin of a spacing around them, the pattern, spacing and diameter
+    /// printed under it, and a 50 mm scale bar to check the print with a ruler.
+    ///
+    /// The page is laid out as evcal expects the board seen from the front (the layout
+    /// `evcal calibrate` echoes): circle 0 at the top left, columns to the right, each odd
+    /// column a spacing lower. Print at 100 % ("actual size", no fit-to-page), measure the
+    /// scale bar, and give `evcal calibrate` the same --pattern, --spacing and --radius (the
+    /// caption says them). Glue the print flat on a rigid board.
+    #[command(after_help = "Examples:\n  evcal target --pattern 4x11 --spacing 0.02 --out board.svg\n  \
+evcal target --pattern 4x11 --spacing 0.024 --paper a3 --out board.pdf\n  \
+evcal target --pattern 3x9 --spacing 0.027 --radius 0.008 --paper letter --out board.svg\n\n\
+What --spacing means: S is the distance between neighbouring columns; circles in one column are \
+2·S apart and diagonal neighbours S·√2 (board point (i, j) at (i·S, (2j + i mod 2)·S)). It is \
+OpenCV's squareSize for CALIB_CB_ASYMMETRIC_GRID and Kalibr's spacingMeters with asymmetricGrid: \
+true; evcal's 4x11 is OpenCV's patternSize (4, 11) and Kalibr's targetCols: 4, targetRows: 11.")]
+    Target(target::TargetArgs),
 }
 
 fn main() {
@@ -135,6 +154,7 @@ fn main() {
         Command::Replay(a) => replay::run(a),
         Command::Collect(a) => collect::run(a),
         Command::Device(a) => device::run(a),
+        Command::Target(a) => target::run(a),
     };
     if let Err(e) = r {
         if e.chain().any(|c| c.is::<common::StdoutClosed>()) {
