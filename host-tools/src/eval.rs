@@ -209,6 +209,7 @@ mod test {
             events: 0,
             noise: 0,
             centers: vec![c(10.1, 10.0), c(50.0, 50.0), c(30.0, 30.0)],
+            sensor: None,
         };
         let truth = [
             TrueCircle { centre: [10.0, 10.0], radius_px: 6.0, in_view: true },

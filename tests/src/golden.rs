@@ -29,8 +29,9 @@ pub const DETECT_STEP_MS: u64 = 0;
 /// `evcal detect REC --step-ms 0 --events-per-window 4000` (the device's window; the host's
 /// default is 8000) on [`DETECT_SEED`]'s recording: its JSON lines, with their newlines (101
 /// windows). The same bytes as the firmware's detection frames give,
-/// written as `evcal replay` writes them.
-pub const DETECT_JSONL: u64 = 0xf306_0bde_7816_0794;
+/// written as `evcal replay` writes them. Each line ends with the sensor's size since issue
+/// 44 (`"sensor":[346,260]`; without it the lines hash to the former 0xf306_0bde_7816_0794).
+pub const DETECT_JSONL: u64 = 0x13d2_8768_cf36_8299;
 
 /// The seeded simulation of [`BENCH_LINES`]: DAVIS346, 4x11 grid, cone, good light, seed 5,
 /// 0.6 s, windows of 4000 events every 5 ms (`tests/tests/end_to_end/firmware_qemu.rs`'s bulk replay).

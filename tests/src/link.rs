@@ -299,7 +299,13 @@ pub fn replay(qemu: &mut Qemu, cfg: DetectConfig, events: &[Event], tamper: Tamp
             match DeviceMessage::parse(&payload) {
                 Ok(DeviceMessage::Detection(d)) => {
                     out.detection_bytes += whole.len() as u64;
-                    out.jsonl.push_str(&WindowRecord::from_frame(&d).to_json_line());
+                    // As `evcal replay` writes it: with the sensor of the device's Hello.
+                    let w = WindowRecord::from_frame(&d);
+                    let w = match out.hellos.last() {
+                        Some(h) => w.with_sensor(h.config.sensor),
+                        None => w,
+                    };
+                    out.jsonl.push_str(&w.to_json_line());
                     out.jsonl.push('\n');
                     out.detections.push((d.header.seq, whole));
                 }

@@ -99,6 +99,11 @@ pub struct WindowRecord {
     pub noise: u16,
     /// The circle centres found.
     pub centers: Vec<CenterRecord>,
+    /// The sensor's size, `[width, height]`, as the writer knew it (`evcal detect`, `replay`,
+    /// `collect` and `demo` write it on every line, so that `calibrate` needs no `--sensor`
+    /// and a line cut from its file still says it); absent from older files.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<[u16; 2]>,
 }
 
 impl CenterRecord {
@@ -117,7 +122,13 @@ impl WindowRecord {
             events: h.events,
             noise: h.noise,
             centers: centres.map(|c| CenterRecord::from_wire(&c)).collect(),
+            sensor: None,
         }
+    }
+
+    /// The record saying the sensor's size.
+    pub fn with_sensor(self, sensor: SensorSize) -> Self {
+        Self { sensor: Some([sensor.width, sensor.height]), ..self }
     }
 
     /// The record of a detection received from a device.
@@ -402,6 +413,7 @@ mod test {
             events: 4000,
             noise: 120,
             centers: vec![CenterRecord { u: 10.5, v: 20.25, r: 6.0, spread: 0.3, n: 55, converged: true }],
+            sensor: Some([346, 260]),
         };
         let text = format!("{}\n\n{}\n", w.to_json_line(), w.to_json_line());
         assert_eq!(read_jsonl(text.as_bytes()).unwrap(), vec![w.clone(), w.clone()]);
@@ -416,7 +428,14 @@ mod test {
     fn a_centre_listed_twice_is_refused() {
         let c = CenterRecord { u: 10.5, v: 20.25, r: 6.0, spread: 0.3, n: 55, converged: true };
         let other = CenterRecord { u: 30.0, ..c };
-        let w = |seq, centers| WindowRecord { seq, t_ref_us: 100 * u64::from(seq), events: 4000, noise: 0, centers };
+        let w = |seq, centers| WindowRecord {
+            seq,
+            t_ref_us: 100 * u64::from(seq),
+            events: 4000,
+            noise: 0,
+            centers,
+            sensor: None,
+        };
         let text = format!("{}\n{}\n", w(1, vec![c, other]).to_json_line(), w(2, vec![c, other, c]).to_json_line());
         let e = read_jsonl_in_order(text.as_bytes()).unwrap_err();
         assert!(matches!(e, ReadDetectionsError::Repeated { line: 2, .. }), "{e}");

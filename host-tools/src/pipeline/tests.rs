@@ -25,7 +25,7 @@ fn windows(pattern: &Pattern, n: usize) -> Vec<WindowRecord> {
                 })
                 .collect();
             centers.push(CenterRecord { u: 300.0, v: 240.0, r: 9.0, spread: 0.5, n: 30, converged: true });
-            WindowRecord { seq: k as u32, t_ref_us: 1000 * k as u64, events: 4000, noise: 100, centers }
+            WindowRecord { seq: k as u32, t_ref_us: 1000 * k as u64, events: 4000, noise: 100, centers, sensor: None }
         })
         .collect()
 }

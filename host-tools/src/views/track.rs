@@ -386,6 +386,7 @@ mod test {
                 .iter()
                 .map(|p| CenterRecord { u: p[0] as f32, v: p[1] as f32, r: 5.0, spread: 0.1, n: 60, converged: true })
                 .collect(),
+            sensor: None,
         }
     }
 

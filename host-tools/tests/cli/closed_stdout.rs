@@ -108,7 +108,7 @@ fn calibrate_writes_its_files_and_ends_quietly() {
                     converged: true,
                 })
                 .collect();
-            WindowRecord { seq, t_ref_us, events: 4000, noise: 100, centers }.to_json_line()
+            WindowRecord { seq, t_ref_us, events: 4000, noise: 100, centers, sensor: None }.to_json_line()
         })
         .collect();
     let dir = tempfile::tempdir().unwrap();

@@ -28,7 +28,7 @@ fn detections_of_the_seeded_simulation_are_pinned() {
     cfg.window.step_us = golden::DETECT_STEP_MS * 1000;
     let mut jsonl = String::new();
     let summary = detections::run(events.into_iter().map(Ok), cfg, |d| {
-        jsonl.push_str(&WindowRecord::from_detection(d).to_json_line());
+        jsonl.push_str(&WindowRecord::from_detection(d).with_sensor(sensor).to_json_line());
         jsonl.push('\n');
     })
     .unwrap();

@@ -35,8 +35,10 @@ fn recording(seconds: f64, light: Light, seed: u64) -> (Vec<Event>, DetectConfig
 /// What `evcal detect` prints for these events.
 fn detect_lines(events: &[Event], cfg: DetectConfig) -> Vec<String> {
     let mut lines = Vec::new();
-    detections::run(events.iter().map(|e| Ok(*e)), cfg, |d| lines.push(WindowRecord::from_detection(d).to_json_line()))
-        .unwrap();
+    detections::run(events.iter().map(|e| Ok(*e)), cfg, |d| {
+        lines.push(WindowRecord::from_detection(d).with_sensor(cfg.sensor).to_json_line())
+    })
+    .unwrap();
     lines
 }
 

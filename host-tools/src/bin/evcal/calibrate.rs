@@ -220,14 +220,6 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
         Some(r) => stdin_holds_detections(r)?,
         None => is_detections(&a.input)?,
     };
-    let sensor = match sensor {
-        Some(s) => Some(s),
-        None if from_events => None,
-        None => bail!(
-            "{}: detections do not say the sensor size; give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
-            a.input.display()
-        ),
-    };
     let r = calibrate(&a, pattern, from_events, sensor, stdin);
     if let Err(e) = &r {
         if !e.chain().any(|c| c.is::<StdoutClosed>()) {
@@ -239,8 +231,8 @@ pub fn run(a: CalibrateArgs) -> Result<()> {
 
 /// The run after the options' checks.
 ///
-/// `sensor`: given, or for a recording `None` to take from it; `stdin`: standard input when
-/// it is the input, its first bytes peeked. The options were checked.
+/// `sensor`: given, or `None` to take from the recording or the detections; `stdin`:
+/// standard input when it is the input, its first bytes peeked. The options were checked.
 fn calibrate(
     a: &CalibrateArgs,
     pattern: Pattern,
@@ -248,7 +240,7 @@ fn calibrate(
     sensor: Option<SensorSize>,
     stdin: Option<Stdin>,
 ) -> Result<()> {
-    let (windows, size) = if let (false, Some(sensor)) = (from_events, sensor) {
+    let (windows, size) = if !from_events {
         let w = match stdin {
             Some(r) => detections::read_jsonl_in_order(r).with_context(|| STDIN_NAME.to_string())?,
             None => {
@@ -257,7 +249,11 @@ fn calibrate(
                     .with_context(|| a.input.display().to_string())?
             }
         };
-        (w, sensor)
+        if w.is_empty() {
+            bail!("{}: no detection windows (an empty file)", a.input.display());
+        }
+        let size = detections_sensor(&w, sensor, &a.input)?;
+        (w, size)
     } else {
         detect(a, a.core.filled_discs, stdin)?
     };
@@ -456,6 +452,44 @@ pub fn find_views(windows: &[WindowRecord], setup: &Setup, quiet: bool) -> Views
     let views = views_from_windows(windows, setup, &|n| pb.set_position(n as u64));
     pb.finish_and_clear();
     views
+}
+
+/// The sensor the detections `windows` were made on: what their lines say (each the same),
+/// or `given` (`--sensor`); an error when they disagree or neither says.
+fn detections_sensor(windows: &[WindowRecord], given: Option<SensorSize>, input: &Path) -> Result<SensorSize> {
+    let mut stated: Option<(u32, [u16; 2])> = None;
+    for w in windows {
+        match (w.sensor, stated) {
+            (Some(s), None) => stated = Some((w.seq, s)),
+            (Some(s), Some((seq, first))) if s != first => bail!(
+                "{}: window {} says a {}x{} sensor, window {seq} a {}x{}: detections of two cameras in one file",
+                input.display(),
+                w.seq,
+                s[0],
+                s[1],
+                first[0],
+                first[1]
+            ),
+            _ => {}
+        }
+    }
+    let stated = stated.map(|(_, [width, height])| SensorSize { width, height });
+    match (given, stated) {
+        (Some(g), Some(s)) if g != s => bail!(
+            "{}: the detections were made on a {}x{} sensor, and --sensor says {}x{}: leave --sensor out, or detect again with the size you mean",
+            input.display(),
+            s.width,
+            s.height,
+            g.width,
+            g.height
+        ),
+        (Some(g), _) => Ok(g),
+        (None, Some(s)) => Ok(s),
+        (None, None) => bail!(
+            "{}: detections do not say the sensor size (written before evcal wrote it on every line); give --sensor WxH (e.g. 346x260) or davis346 / dvxplorer",
+            input.display()
+        ),
+    }
 }
 
 /// Windows [`transposed_finds`] looks at: enough to find a grid that is in view a tenth of

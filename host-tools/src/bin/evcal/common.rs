@@ -68,7 +68,8 @@ impl ReadArgs {
 #[derive(Args, Clone)]
 pub struct CoreArgs {
     /// Sensor size, WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320. Default:
-    /// from the file, else guessed from the largest coordinates (a note says so).
+    /// from the file (detections say it on every line), else guessed from a recording's
+    /// largest coordinates (a note says so).
     #[arg(long)]
     pub sensor: Option<String>,
     /// Events per window [default: scaled with the sensor, 8000 for 346x260; --help says how]

@@ -52,7 +52,7 @@ pub fn run(a: DetectArgs) -> Result<()> {
         pb.set_position(progress.get());
         pb.set_prefix(format!("windows {}", d.info.seq + 1));
         if write_err.is_none() {
-            if let Err(e) = out.line(&WindowRecord::from_detection(d).to_json_line()) {
+            if let Err(e) = out.line(&WindowRecord::from_detection(d).with_sensor(sensor).to_json_line()) {
                 write_err = Some(e);
                 failed.set(true);
             }

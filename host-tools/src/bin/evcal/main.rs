@@ -32,7 +32,7 @@ the sensor and here on the host.",
     after_help = "Examples:\n  evcal simulate --sensor davis346 --pattern 4x11 --seconds 5 --out rec.txt\n  \
 evcal detect rec.txt --sensor 346x260 > detections.jsonl\n  evcal info recording.raw\n  \
 evcal replay rec.txt --port tcp:127.0.0.1:7878 --out detections.jsonl\n  evcal collect --port /dev/ttyACM0 --out detections.jsonl\n  \
-evcal calibrate detections.jsonl --sensor 346x260 --pattern 4x11 --spacing 0.024\n  evcal demo\n  \
+evcal calibrate detections.jsonl --pattern 4x11 --spacing 0.024\n  evcal demo\n  \
 evcal target --pattern 4x11 --spacing 0.02 --out board.svg"
 )]
 struct Cli {
@@ -82,7 +82,7 @@ enum Command {
     #[command(
         verbatim_doc_comment,
         after_help = "Examples:\n  evcal calibrate rec.h5 --pattern 4x11 --spacing 0.024\n  \
-evcal calibrate detections.jsonl --sensor 346x260 --pattern 3x9 --spacing 0.027 --out cam0 --json cam0.json\n  \
+evcal calibrate detections.jsonl --pattern 3x9 --spacing 0.027 --out cam0 --json cam0.json\n  \
 evcal calibrate rec.txt --sensor davis346 --pattern 4x11 --spacing 0.024 --fix-k3"
     )]
     Calibrate(calibrate::CalibrateArgs),

@@ -295,6 +295,8 @@ fn attempt_connect(addr: &str, stop: &AtomicBool) -> Result<Result<TcpStream, St
 fn read_frames(mut reader: impl Read, traffic: &Traffic, mut deliver: impl FnMut(Incoming) -> bool) {
     let mut acc: Box<FrameAccumulator<HOST_RX_FRAME>> = Box::new(FrameAccumulator::new());
     let mut buf = vec![0u8; 4096];
+    // The sensor of the device's latest Hello, written with each window's detections.
+    let mut sensor = None;
     loop {
         let n = match reader.read(&mut buf) {
             Ok(0) => {
@@ -321,8 +323,17 @@ fn read_frames(mut reader: impl Read, traffic: &Traffic, mut deliver: impl FnMut
                 Feed::Frame { payload, rest } => {
                     input = rest;
                     match DeviceMessage::parse(payload) {
-                        Ok(DeviceMessage::Hello(h)) => Incoming::Hello(h),
-                        Ok(DeviceMessage::Detection(d)) => Incoming::Window(WindowRecord::from_frame(&d)),
+                        Ok(DeviceMessage::Hello(h)) => {
+                            sensor = Some(h.config.sensor);
+                            Incoming::Hello(h)
+                        }
+                        Ok(DeviceMessage::Detection(d)) => {
+                            let w = WindowRecord::from_frame(&d);
+                            Incoming::Window(match sensor {
+                                Some(s) => w.with_sensor(s),
+                                None => w,
+                            })
+                        }
                         Ok(DeviceMessage::Stats(s)) => Incoming::Stats(s),
                         Ok(DeviceMessage::Ack(a)) => Incoming::Ack(a),
                         Err(e) => Incoming::Bad(e),

@@ -46,7 +46,7 @@ fn synthetic_detections(path: &Path, truth: &evcal_host::calib::Intrinsics, n: u
                 .iter()
                 .map(|p| CenterRecord { u: p[0] as f32, v: p[1] as f32, r: 4.0, spread: 0.3, n: 60, converged: true })
                 .collect();
-            let w = WindowRecord { seq: seq as u32, t_ref_us, events: 4000, noise: 10, centers };
+            let w = WindowRecord { seq: seq as u32, t_ref_us, events: 4000, noise: 10, centers, sensor: None };
             serde_json::to_string(&w).unwrap()
         })
         .collect();
@@ -152,8 +152,14 @@ fn windows_of_thousands_of_centres_are_misses_within_seconds() {
                     converged: true,
                 })
                 .collect();
-            let w =
-                WindowRecord { seq, t_ref_us: 1_000_000 + 33_333 * u64::from(seq), events: 4000, noise: 10, centers };
+            let w = WindowRecord {
+                seq,
+                t_ref_us: 1_000_000 + 33_333 * u64::from(seq),
+                events: 4000,
+                noise: 10,
+                centers,
+                sensor: None,
+            };
             serde_json::to_string(&w).unwrap()
         })
         .collect();
@@ -163,4 +169,62 @@ fn windows_of_thousands_of_centres_are_misses_within_seconds() {
     let (code, out, err) = evcal_within(20.0, &args);
     assert_eq!(code, Some(1), "{out}{err}");
     assert!(err.contains("crowded.jsonl") && err.contains("5 too many centres (more than 4 per circle"), "{err}");
+}
+
+/// Before (issue 44): detections never said their sensor, and `calibrate` asked for
+/// `--sensor`. Now each line says it: no `--sensor` is needed, one that disagrees is refused,
+/// and so is a file of two cameras.
+#[test]
+fn detections_say_their_sensor() {
+    let dir = tempfile::tempdir().unwrap();
+    let truth = evcal_host::calib::Intrinsics {
+        fx: 352.4,
+        fy: 351.1,
+        cx: 171.3,
+        cy: 128.6,
+        k1: -0.31,
+        k2: 0.12,
+        p1: 0.0,
+        p2: 0.0,
+        k3: 0.0,
+    };
+    let plain = dir.path().join("plain.jsonl");
+    synthetic_detections(&plain, &truth, 30, &[]);
+    let text = std::fs::read_to_string(&plain).unwrap();
+    let said = |size: &str, lines: std::ops::Range<usize>| -> String {
+        text.lines()
+            .enumerate()
+            .map(|(k, l)| match lines.contains(&k) {
+                true => format!("{},\"sensor\":{size}}}\n", l.strip_suffix('}').unwrap()),
+                false => format!("{l}\n"),
+            })
+            .collect()
+    };
+    let run = |name: &str, contents: &str, extra: &[&str]| {
+        let det = dir.path().join(name);
+        std::fs::write(&det, contents).unwrap();
+        let out = dir.path().join(format!("{name}.out"));
+        let mut args = vec!["calibrate", s(&det), "--pattern", "4x11", "--spacing", "0.024"];
+        args.extend(["--no-smoothing", "--no-edge-shift", "--no-tracking", "--out", s(&out)]);
+        args.extend(extra);
+        let args: Vec<String> = args.iter().map(|a| a.to_string()).collect();
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        evcal_within(60.0, &args)
+    };
+    let (code, out, err) = run("said.jsonl", &said("[346,260]", 0..30), &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    // Said on some lines only (an older file with newer lines after it): taken.
+    let (code, out, err) = run("some.jsonl", &said("[346,260]", 10..12), &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let (code, _, err) = run("other.jsonl", &said("[346,260]", 0..30), &["--sensor", "640x480"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("made on a 346x260 sensor, and --sensor says 640x480"), "{err}");
+    let (a, b) = (said("[346,260]", 0..30), said("[640,480]", 0..30));
+    let two: String = a.lines().take(15).chain(b.lines().skip(15)).map(|l| format!("{l}\n")).collect();
+    let (code, _, err) = run("two.jsonl", &two, &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("says a 640x480 sensor, window 0 a 346x260"), "{err}");
+    let (code, _, err) = run("none.jsonl", &text, &[]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("do not say the sensor size"), "{err}");
 }
