@@ -12,4 +12,5 @@ pub mod export;
 pub mod input;
 pub mod pipeline;
 pub mod sim;
+mod stats;
 pub mod views;

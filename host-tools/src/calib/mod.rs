@@ -44,8 +44,9 @@ pub(crate) use problem::board_key;
 pub use problem::{Options, View};
 pub use result::{CalibError, Calibration, MoveEstimate, PrecisionBin, Rejection, ViewResult};
 
+use crate::stats::{median, median_mad};
 use covariance::{grouped_covariance, view_groups};
-use stats::{median_mad, precision_weights, rms};
+use stats::{precision_weights, rms};
 
 use nalgebra::{Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -226,11 +227,11 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         // The floor keeps the heavy tail of real centre errors from costing whole views.
         let errors: Vec<Vec<f64>> =
             kept.iter().zip(&poses).map(|(&v, p)| residuals(&views[v].object, &targets[v], &k, p)).collect();
-        let all: Vec<f64> = errors.iter().flatten().copied().collect();
-        let sigma = (median_mad(&all).0 / 1.18).max(1e-9);
+        let mut all: Vec<f64> = errors.iter().flatten().copied().collect();
+        let sigma = (median(&mut all).unwrap_or(0.0) / 1.18).max(1e-9);
         let far = (5.0 * sigma).max(MISLABEL_PX);
-        let medians: Vec<f64> = errors.iter().map(|e| median_mad(e).0).collect();
-        let (med, mad) = median_mad(&medians);
+        let medians: Vec<f64> = errors.iter().map(|e| median(&mut e.clone()).unwrap_or(f64::NAN)).collect();
+        let (med, mad) = median_mad(&medians).unwrap_or((0.0, 0.0));
         let limit = (med + 5.0 * 1.4826 * mad).max(2.0 * med);
         // While the worst views bend the solution, a good view can look bad too: only the
         // worst go each round (those within a factor of two of the worst), then all is
@@ -350,7 +351,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
     let rms_all_px = (sq_all / all_points.max(1) as f64).sqrt();
     let per_view: Vec<f64> = view_results.iter().map(|r| r.rms_px).collect();
     let mean_view_px = per_view.iter().sum::<f64>() / per_view.len().max(1) as f64;
-    let (median_view_px, _) = median_mad(&per_view);
+    let median_view_px = median(&mut per_view.clone()).unwrap_or(0.0);
     let stray_points = all_points - count;
 
     // Standard deviations: the residual variance times the inverse of the reduced normal

@@ -1,6 +1,7 @@
-//! Statistics of the residuals: RMS, medians, and the weights by each point's precision.
+//! Statistics of the residuals: RMS, and the weights by each point's precision.
 
 use super::*;
+use crate::stats::median;
 
 pub(super) fn rms(e: &[f64]) -> f64 {
     (e.iter().map(|x| x * x).sum::<f64>() / e.len().max(1) as f64).sqrt()
@@ -47,7 +48,7 @@ pub(super) fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option
         if s.is_empty() {
             continue;
         }
-        let mut block = (median(s), s.len(), b);
+        let mut block = (median(s)?, s.len(), b);
         while let Some(&(m, n, first)) = pooled.last() {
             if m >= block.0 {
                 break;
@@ -58,7 +59,7 @@ pub(super) fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option
         pooled.push(block);
     }
     let mut all: Vec<f64> = points.iter().map(|p| p.1).collect();
-    let reference = median(&mut all);
+    let reference = median(&mut all)?;
     let mut weight_of_bin = vec![1.0; square.len()];
     for (k, &(m, _, first)) in pooled.iter().enumerate() {
         let last = pooled.get(k + 1).map_or(square.len(), |p| p.2);
@@ -78,31 +79,4 @@ pub(super) fn precision_weights(errors: &[Vec<f64>], hints: &[&[f64]]) -> Option
         .map(|h| h.iter().map(|&h| if h.is_finite() { weight_of_bin[bin_of(h)] } else { 1.0 }).collect())
         .collect();
     Some((weights, bins_used))
-}
-
-/// The median of `xs` (reordered); 0 for none.
-fn median(xs: &mut [f64]) -> f64 {
-    if xs.is_empty() {
-        return 0.0;
-    }
-    xs.sort_by(f64::total_cmp);
-    let n = xs.len();
-    if n % 2 == 1 {
-        xs[n / 2]
-    } else {
-        0.5 * (xs[n / 2 - 1] + xs[n / 2])
-    }
-}
-
-/// Median and median absolute deviation.
-pub(super) fn median_mad(x: &[f64]) -> (f64, f64) {
-    if x.is_empty() {
-        return (0.0, 0.0);
-    }
-    let mut s: Vec<f64> = x.to_vec();
-    s.sort_by(f64::total_cmp);
-    let med = s[s.len() / 2];
-    let mut d: Vec<f64> = s.iter().map(|v| (v - med).abs()).collect();
-    d.sort_by(f64::total_cmp);
-    (med, d[d.len() / 2])
 }

@@ -2,6 +2,7 @@
 //! points and precision figures, and the grid finder's tally.
 
 use super::*;
+use crate::stats::median;
 
 /// How the grid finder fared over the windows.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -220,14 +221,4 @@ fn radii_of(grid: &GridDetection, pattern: &Pattern) -> Vec<f64> {
             (r.is_finite() && r > 0.0).then_some(r)
         })
         .collect()
-}
-
-/// The median of `x` (reordered), `None` when empty.
-fn median(x: &mut [f64]) -> Option<f64> {
-    if x.is_empty() {
-        return None;
-    }
-    let mid = x.len() / 2;
-    let (_, m, _) = x.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(*m)
 }

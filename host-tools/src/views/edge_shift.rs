@@ -140,11 +140,7 @@ pub fn scaled_by_thickness(dirs: &[Vec<[f64; 2]>], spreads: &[&[f64]]) -> Option
     }
     let usable = |s: f64| s.is_finite() && s > 0.0;
     let mut all: Vec<f64> = spreads.iter().flat_map(|s| s.iter().copied()).filter(|&s| usable(s)).collect();
-    if all.is_empty() {
-        return None;
-    }
-    let mid = all.len() / 2;
-    let median = *all.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let median = crate::stats::median(&mut all)?;
     Some(
         dirs.iter()
             .zip(spreads)

@@ -25,6 +25,7 @@
 
 use crate::calib::fit_homography;
 use crate::input::detections::WindowRecord;
+use crate::stats::median;
 use crate::views::grid::{homography_check, GridDetection, GridPoint, Miss, Pattern};
 
 /// How far and how strictly the grid is followed.
@@ -183,14 +184,6 @@ fn matched(
     points
 }
 
-fn median(mut v: Vec<f64>) -> Option<f64> {
-    if v.is_empty() {
-        return None;
-    }
-    v.sort_by(f64::total_cmp);
-    Some(v[v.len() / 2])
-}
-
 /// Most rounds of following: each round's grids anchor the next (a run of windows missed
 /// in a row is followed in from both ends). 16 rounds reach half a second into a run from
 /// each end at the default 33 ms between windows: a dim scene's runs of partial windows
@@ -343,7 +336,7 @@ fn follow_one(
         return Err(Unfollowed::TooFewMatched(first.len()));
     }
     // Refine through the view's own homography, with clutter of the wrong size out.
-    let r = median(first.iter().map(|g| g.radius_px).collect()).ok_or(Unfollowed::TooFewMatched(0))?;
+    let r = median(&mut first.iter().map(|g| g.radius_px).collect::<Vec<_>>()).ok_or(Unfollowed::TooFewMatched(0))?;
     let refined = projected(&first, board).ok_or(Unfollowed::Inconsistent)?;
     let points =
         matched(&refined, &windows[k], opts.refined_gate, Some((r, opts.radius_tolerance)), Some((&pred, opts.gate)));

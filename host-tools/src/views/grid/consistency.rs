@@ -44,10 +44,8 @@ pub(super) fn consistent(pts: &[Pt]) -> Vec<usize> {
     // tilted board is seen larger at its near side than at its far side).
     let fm = feature(m);
     let members: Vec<usize> = (0..pts.len()).filter(|&b| near(fm, feature(b), 0.22)).collect();
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
-    };
+    // Never empty: the mode is its own member (features are finite, so no NaN is left out).
+    let median = |mut v: Vec<f64>| crate::stats::median(&mut v).unwrap_or(f64::NAN);
     let centre = (
         median(members.iter().map(|&k| feature(k).0).collect()),
         median(members.iter().map(|&k| feature(k).1).collect()),
