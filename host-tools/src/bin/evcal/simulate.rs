@@ -184,7 +184,9 @@ pub fn run(a: SimulateArgs) -> Result<()> {
         Out::Text(TextWriter::create(&a.out, Some(sensor)).with_context(writing)?)
     };
     let mut cuts = WindowTimes::new(window);
-    let (n_events, sim) = run_simulation(cfg, a.seconds, a.quiet, |b| {
+    // What a text line (`0.123456 123 45 1`) and an HDF5 row (four f64) take.
+    let bytes_per_event = if is_h5 { 32.0 } else { 18.0 };
+    let (n_events, sim) = run_simulation(cfg, a.seconds, a.quiet, bytes_per_event, |b| {
         cuts.push(b);
         match &mut out {
             Out::H5(w) => w.write(b).map_err(anyhow::Error::msg),

@@ -511,3 +511,38 @@ fn a_pattern_the_other_way_round_is_named() {
     assert_ne!(code, Some(0), "{err}");
     assert!(!err.contains("other way round"), "{err}");
 }
+
+/// Before (issue 44): `simulate` said nothing of how large or long a run would be until it
+/// ended (a leak of 10 kHz a pixel makes gigabytes). Now, half a second into the simulated
+/// time, it says the events, megabytes and seconds the whole run will take at that rate.
+#[test]
+fn simulate_says_how_large_and_long_before_the_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("rec.txt");
+    let (code, _, err) =
+        evcal(&["simulate", "--seconds", "0.8", "--out", s(&rec), "--truth", s(&dir.path().join("t.json"))]);
+    assert_eq!(code, Some(0), "{err}");
+    let line = err.lines().find(|l| l.contains("at the rate of the first")).unwrap_or_else(|| panic!("{err}"));
+    // "... about 0.7 M events, 12 MB, about ..." against what was written.
+    let number_before = |unit: &str| -> f64 {
+        let head = &line[..line.find(unit).unwrap_or_else(|| panic!("{line}"))];
+        head.trim_end().rsplit(' ').next().unwrap().parse().unwrap_or_else(|_| panic!("{line}"))
+    };
+    let (events, mb) = (number_before(" M events") * 1e6, number_before(" MB") * 1e6);
+    let written = std::fs::read_to_string(&rec).unwrap();
+    let (n, bytes) = (written.lines().count() as f64 - 1.0, written.len() as f64);
+    assert!((events / n - 1.0).abs() < 0.5, "{line}: {n} events written");
+    assert!((mb / bytes - 1.0).abs() < 0.5, "{line}: {bytes} bytes written");
+    // Short runs are not worth the line.
+    let (code, _, err) = evcal(&[
+        "simulate",
+        "--seconds",
+        "0.3",
+        "--out",
+        s(&dir.path().join("short.txt")),
+        "--truth",
+        s(&dir.path().join("t2.json")),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!err.contains("at the rate of the first"), "{err}");
+}
