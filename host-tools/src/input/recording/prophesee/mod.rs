@@ -22,7 +22,10 @@ pub mod write;
 pub use dat::DatReader;
 pub use raw::RawReader;
 
-use super::{bytes::quote, stated_sensor, Format, Position, ReadError};
+use super::{
+    bytes::quote,
+    types::{stated_sensor, Format, Position, ReadError},
+};
 use evcal_core::{
     event::SensorSize,
     evt::{Encoding, Evt21Order},

@@ -1,8 +1,11 @@
 //! Prophesee RAW files: the `%` header, then the sensor's EVT byte stream, decoded in chunks
 //! by `evcal_core::evt` (constant memory whatever the file's size).
 
-use super::{Header, Position, ReadError};
-use crate::input::recording::{bytes::Input, EventSource};
+use super::Header;
+use crate::input::recording::{
+    bytes::Input,
+    types::{EventSource, Position, ReadError},
+};
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Decoder, Encoding, Evt21Order},
