@@ -4,10 +4,11 @@
 //! The pieces are layered so that imports go one way, from the readers down:
 //!
 //! * this module and [`cols`] (with [`attrs`], what a file's attributes say) open a file
-//!   through [`file`] and read its datasets through [`chunks`];
+//!   through [`file`](mod@file) and read its datasets through [`chunks`];
 //! * [`chunks`] finds chunks in [`index`] and undoes their filters, naming a missing one
 //!   with [`filters`];
-//! * [`filters`] checks a dataset's parameters, Blosc's through [`blosc`];
+//! * [`filters`] checks a dataset's parameters, Blosc's through [`blosc`] (whose decoder
+//!   [`file`](mod@file) installs before any file is opened);
 //! * [`limits`], the bounds every piece shares, imports none of them.
 //!
 //! Only [`blosc`], [`chunks`] and [`index`] call HDF5's C library directly, so only they may
