@@ -3,7 +3,7 @@
 
 #![deny(missing_docs)]
 // Only the HDF5 modules that call its C library directly may use `unsafe` (allowed by name in
-// `input::recording`).
+// `input::recording::hdf5`).
 #![deny(unsafe_code)]
 
 pub mod calib;

@@ -19,7 +19,7 @@ use super::{
     aedat4info::{choose_stream, parse_info},
     codec::{self, Codec},
     flatbuf::{Buf, Table},
-    EventSource, Position, ReadError,
+    types::{EventSource, Position, ReadError},
 };
 use evcal_core::event::{Event, SensorSize};
 use std::{

@@ -47,7 +47,7 @@ pub(super) fn parse_info(xml: &str) -> Result<(Vec<StreamInfo>, Vec<(i32, String
         let size = match stated {
             None => None,
             Some((w, h)) => match (w.parse::<i128>(), h.parse::<i128>()) {
-                (Ok(w), Ok(h)) => super::stated_sensor(w, h).unwrap_or_else(|m| {
+                (Ok(w), Ok(h)) => super::types::stated_sensor(w, h).unwrap_or_else(|m| {
                     bad_sizes.push((id, m));
                     None
                 }),

@@ -25,7 +25,7 @@ pub use super::bagrecords::BagTopic;
 use super::{
     bagrecords::{connection, ChunkStream, EventArrayHead, Fields, MAX_HELD},
     codec::Codec,
-    EventSource, Position, ReadError,
+    types::{EventSource, Position, ReadError},
 };
 use evcal_core::event::{Event, SensorSize};
 use std::{

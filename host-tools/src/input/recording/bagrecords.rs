@@ -121,7 +121,7 @@ impl EventArrayHead {
     /// The sensor size the message states: `None` for 0 (drivers that do not know it), an
     /// error naming the value for one outside what evcal handles.
     pub(super) fn sensor(&self) -> Result<Option<SensorSize>, String> {
-        super::stated_sensor(i128::from(self.width), i128::from(self.height))
+        super::types::stated_sensor(i128::from(self.width), i128::from(self.height))
     }
 }
 

@@ -10,7 +10,7 @@
 //! when the process is interrupted; the second in a file without a name, gone with the
 //! process.
 
-use super::ReadError;
+use super::types::{Position, ReadError};
 use std::{
     cell::RefCell,
     fs::File,
@@ -46,7 +46,7 @@ impl Input {
         let f = File::open(path).map_err(|e| ReadError::io(path, e))?;
         let meta = f.metadata().map_err(|e| ReadError::io(path, e))?;
         if meta.is_dir() {
-            return Err(ReadError::new(path, super::Position::File, "is a directory, not a recording"));
+            return Err(ReadError::new(path, Position::File, "is a directory, not a recording"));
         }
         if meta.is_file() {
             Ok(Self {
@@ -98,7 +98,7 @@ impl Input {
     fn spool_up_to(self, max: u64) -> Result<Spool, ReadError> {
         let name = self.name.clone();
         let err = |e: std::io::Error| {
-            ReadError::new(&name, super::Position::File, format!("cannot copy the stream to a temporary file: {e}"))
+            ReadError::new(&name, Position::File, format!("cannot copy the stream to a temporary file: {e}"))
         };
         let (mut file, spool) = Spool::new().map_err(err)?;
         let mut r = self.into_reader().take(max.saturating_add(1));
@@ -106,7 +106,7 @@ impl Input {
         if copied > max {
             return Err(ReadError::new(
                 &name,
-                super::Position::File,
+                Position::File,
                 format!(
                     "a stream in a format that needs random access is copied to a temporary file first, up to {} MiB, and this one is longer: give the file's path instead of a pipe",
                     max >> 20

@@ -9,61 +9,28 @@ mod aedat4;
 mod aedat4info;
 mod bag;
 mod bagrecords;
-#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
-mod blosc;
 mod bytes;
 mod codec;
 mod flatbuf;
-mod h5;
-mod h5attrs;
-#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
-mod h5chunks;
-mod h5cols;
-mod h5file;
-mod h5filters;
-#[allow(unsafe_code)] // HDF5's C library: see the module's SAFETY notes
-mod h5index;
+mod hdf5;
 pub mod prophesee;
 mod text;
+mod types;
 
 pub use aedat4::{Aedat4Reader, Compression as Aedat4Compression, StreamInfo as Aedat4Stream};
 pub use bag::{BagReader, BagTopic, DEFAULT_TOPIC as BAG_DEFAULT_TOPIC};
 pub use bytes::{quote, remove_spools, Spool, SPOOL_MAX_BYTES, STDIN_NAME};
-pub use h5::{write_ecalib_h5, EcalibH5Writer, H5Reader};
-pub use h5cols::{H5ColumnsReader, TimeUnit};
+pub use hdf5::{write_ecalib_h5, EcalibH5Writer, H5ColumnsReader, H5Reader};
 pub use text::{write_text, TextReader, TextWriter, MAX_LINE};
+pub use types::{Format, OpenOptions, Position, ReadError, TimeUnit};
 
 use bytes::{Input, TeeHandle};
-use evcal_core::{
-    event::{Event, SensorSize},
-    evt::{Encoding, Evt21Order},
-};
+use evcal_core::event::{Event, SensorSize};
 use std::{
-    fmt,
     path::{Path, PathBuf},
     rc::Rc,
 };
-
-/// A recording format evcal reads.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Format {
-    /// One event per line, `t x y p`, `t` in seconds (the RPG event-camera dataset layout).
-    Text,
-    /// HDF5 with a dataset `events_data` of N x 4 `[x, y, p, t_seconds]` (E-Calib's layout).
-    EcalibH5,
-    /// Prophesee RAW: a `%` header, then an EVT 2.0 / 2.1 / 3.0 stream.
-    PropheseeRaw(Encoding),
-    /// Prophesee `.dat` of CD events: a `%` header, then 8-byte records.
-    PropheseeDat,
-    /// iniVation DV / dv-processing AEDAT 4.0 (the event stream; frames, IMU, triggers skipped).
-    Aedat4,
-    /// ROS1 bag (format 2.0) with `dvs_msgs/EventArray` messages.
-    RosBag,
-    /// HDF5 with a group `events` of datasets `x`, `y`, `t`, `p` (DSEC and others).
-    EventsGroupH5,
-    /// HDF5 with datasets `x`, `y`, `p`, `t` at the root (e2calib).
-    RootColumnsH5,
-}
+use types::EventSource;
 
 impl Format {
     /// Chooses the format of `path` by its first bytes (the HDF5 signature, AEDAT4's
@@ -82,25 +49,8 @@ impl Format {
                         &*tmp
                     }
                 };
-                Ok(h5cols::layout(p).unwrap_or(Format::EcalibH5))
+                Ok(hdf5::layout(p).unwrap_or(Format::EcalibH5))
             }
-        }
-    }
-
-    /// The format's name, as `evcal` prints it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Format::Text => "text (t x y p)",
-            Format::EcalibH5 => "HDF5 (E-Calib events_data)",
-            Format::PropheseeRaw(Encoding::Evt2) => "Prophesee RAW EVT 2.0",
-            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::LowHalfFirst)) => "Prophesee RAW EVT 2.1",
-            Format::PropheseeRaw(Encoding::Evt21(Evt21Order::HighHalfFirst)) => "Prophesee RAW EVT 2.1 (IMX636 order)",
-            Format::PropheseeRaw(Encoding::Evt3) => "Prophesee RAW EVT 3.0",
-            Format::PropheseeDat => "Prophesee DAT (CD events)",
-            Format::Aedat4 => "AEDAT4 (iniVation DV)",
-            Format::RosBag => "ROS1 bag (dvs_msgs/EventArray)",
-            Format::EventsGroupH5 => "HDF5 (events/x,y,t,p)",
-            Format::RootColumnsH5 => "HDF5 (x,y,p,t at the root: e2calib)",
         }
     }
 }
@@ -141,50 +91,6 @@ fn sniff(input: &mut Input, path: &Path) -> Result<Sniffed, ReadError> {
     })
 }
 
-/// Where in a file a problem was found.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Position {
-    /// A line of a text file, from 1.
-    Line(u64),
-    /// A row of a table (an event index), from 0.
-    Row(u64),
-    /// A byte offset in a binary file, from 0 (the start of the record or packet at fault).
-    Byte(u64),
-    /// Nowhere in particular (opening, metadata).
-    File,
-}
-
-/// A problem reading a recording: the file, where in it, and what.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ReadError {
-    /// The file.
-    pub path: String,
-    /// Where in the file.
-    pub at: Position,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl ReadError {
-    pub(crate) fn new(path: &Path, at: Position, message: impl Into<String>) -> Self {
-        Self { path: path.display().to_string(), at, message: message.into() }
-    }
-
-    pub(crate) fn io(path: &Path, e: std::io::Error) -> Self {
-        Self::new(path, Position::File, e.to_string())
-    }
-
-    /// The error with the name `from` (a temporary copy) replaced by `to` (the stream's).
-    fn renamed(mut self, from: &Path, to: &Path) -> Self {
-        let (from, to) = (from.display().to_string(), to.display().to_string());
-        if self.path == from {
-            self.path.clone_from(&to);
-        }
-        self.message = self.message.replace(&from, &to);
-        self
-    }
-}
-
 /// A reader of a temporary copy, whose messages name the stream the copy is of.
 struct Renamed {
     inner: Box<dyn EventSource>,
@@ -206,34 +112,6 @@ impl EventSource for Renamed {
         let (from, to) = (self.from.display().to_string(), self.to.display().to_string());
         self.note.iter().cloned().chain(self.inner.notes().into_iter().map(|n| n.replace(&from, &to))).collect()
     }
-}
-
-impl fmt::Display for ReadError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self.at {
-            Position::Line(l) => write!(f, "{}:{}: {}", self.path, l, self.message),
-            Position::Row(r) => write!(f, "{}: event {}: {}", self.path, r, self.message),
-            Position::Byte(b) => write!(f, "{}: byte {}: {}", self.path, b, self.message),
-            Position::File => write!(f, "{}: {}", self.path, self.message),
-        }
-    }
-}
-
-impl std::error::Error for ReadError {}
-
-/// Choices a reader cannot make from the file alone; the defaults suit most files.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
-pub struct OpenOptions {
-    /// The stream to read where a file holds several: a ROS bag topic, an AEDAT4 stream's
-    /// name or id. Default: the file's only event stream, else the conventional one
-    /// (`/dvs/events`, `events`).
-    pub topic: Option<String>,
-    /// The unit of timestamps instead of detecting it: of integers in HDF5 column layouts,
-    /// of every time in a text recording.
-    pub time_unit: Option<TimeUnit>,
-    /// Keep what is needed to read a stream a second time ([`Recording::rewind`]): a copy in
-    /// an unlinked temporary file, written as the stream is read (disk, not memory).
-    pub rewindable: bool,
 }
 
 /// An open recording: an iterator of events plus what the file says about itself.
@@ -262,18 +140,6 @@ enum Origin {
     Tee(PathBuf, TeeHandle),
     /// A stream, not kept.
     Stream(PathBuf),
-}
-
-/// A streaming reader of one format.
-pub(crate) trait EventSource {
-    /// The next event, `None` at the end.
-    fn next_event(&mut self) -> Option<Result<Event, ReadError>>;
-    /// Bytes (or rows, scaled to bytes) consumed so far, for progress.
-    fn progress_bytes(&self) -> u64;
-    /// What the reader skipped, dropped or assumed so far, one sentence each.
-    fn notes(&self) -> Vec<String> {
-        Vec::new()
-    }
 }
 
 impl Recording {
@@ -362,7 +228,7 @@ impl Recording {
         note: Option<String>,
     ) -> Result<Self, ReadError> {
         let format = match sniffed {
-            Sniffed::Hdf5 => h5cols::layout(file).unwrap_or(Format::EcalibH5),
+            Sniffed::Hdf5 => hdf5::layout(file).unwrap_or(Format::EcalibH5),
             Sniffed::Ready(f) => f,
         };
         let rename = |e: ReadError| e.renamed(file, name);
@@ -472,22 +338,6 @@ fn time_unit_applies(format: Format, unit: Option<TimeUnit>) -> Result<(), Strin
         "--time-unit {} does not apply to this file: {why} (--time-unit is for text recordings and HDF5 columns)",
         unit.name()
     ))
-}
-
-/// A sensor size as a file states it: `Ok(None)` for 0 by 0 (a writer that did not know it),
-/// else each side must be 1 to 65535 (coordinates are 16-bit); the error says what was
-/// stated, to follow "the header " or the like.
-pub(crate) fn stated_sensor(width: i128, height: i128) -> Result<Option<SensorSize>, String> {
-    if width == 0 && height == 0 {
-        return Ok(None);
-    }
-    match (u16::try_from(width), u16::try_from(height)) {
-        (Ok(w), Ok(h)) if w > 0 && h > 0 => Ok(Some(SensorSize::new(w, h))),
-        _ => Err(format!(
-            "states a sensor size of {width}x{height}; evcal reads sizes of 1 to {} pixels a side",
-            u16::MAX
-        )),
-    }
 }
 
 /// Parses a sensor size: `WxH` (e.g. `346x260`) or a preset name (`davis346`, `dvxplorer`,

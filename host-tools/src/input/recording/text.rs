@@ -11,7 +11,7 @@
 
 use super::{
     bytes::{quote, Input},
-    EventSource, Position, ReadError, TimeUnit,
+    types::{EventSource, Position, ReadError, TimeUnit},
 };
 use evcal_core::event::{Event, SensorSize};
 use std::{

@@ -202,7 +202,7 @@ fn a_blosc_chunk_claiming_more_bytes_than_it_has_is_refused() {
     // c-blosc trusts the compressed size in a chunk's own header; HDF5's Blosc filter as the
     // hdf5 crate registers it passed that on unchecked, and a header claiming more than the
     // chunk holds made the decoder read past the buffer (found by the read_h5 fuzz target).
-    // evcal now decodes chunks itself (input/recording/h5chunks.rs) and checks the header.
+    // evcal now decodes chunks itself (input/recording/hdf5/chunks.rs) and checks the header.
     // Here the first chunk of the DSEC fixture (Blosc-zstd) claims 100 bytes more than it has.
     let mut bytes = std::fs::read(fixture("dsec.h5")).unwrap();
     let header = |b: &[u8], i: usize| {

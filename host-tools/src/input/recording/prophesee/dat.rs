@@ -3,10 +3,10 @@
 //! (type 12, or type 0 of older files) is 8 bytes: a little-endian u32 timestamp in µs and a
 //! u32 with x in bits 0..14, y in bits 14..28 and the polarity in bit 28.
 
-use super::{Header, Position, ReadError};
+use super::header::{peek_header, Header};
 use crate::input::recording::{
     bytes::{read_up_to, Input},
-    EventSource,
+    types::{EventSource, Position, ReadError},
 };
 use evcal_core::event::{Event, SensorSize, TimeUnwrapper};
 use std::{
@@ -66,7 +66,7 @@ impl DatReader {
     /// Reads the header from `input`'s first bytes and checks that CD records follow.
     pub(crate) fn from_input(mut input: Input) -> Result<Self, ReadError> {
         let path = input.name.clone();
-        super::peek_header(&mut input)?;
+        peek_header(&mut input)?;
         let head = &input.head;
         let header = Header::parse(head);
         let at = |o: u64, m: String| ReadError::new(&path, Position::Byte(o), m);

@@ -1,8 +1,11 @@
 //! Prophesee RAW files: the `%` header, then the sensor's EVT byte stream, decoded in chunks
 //! by `evcal_core::evt` (constant memory whatever the file's size).
 
-use super::{Header, Position, ReadError};
-use crate::input::recording::{bytes::Input, EventSource};
+use super::header::{peek_header, Header};
+use crate::input::recording::{
+    bytes::Input,
+    types::{EventSource, Position, ReadError},
+};
 use evcal_core::{
     event::{Event, SensorSize},
     evt::{Decoder, Encoding, Evt21Order},
@@ -44,7 +47,7 @@ impl RawReader {
 
     /// Reads the header from `input`'s first bytes, then decodes the rest as `encoding`.
     pub(crate) fn from_input(mut input: Input, encoding: Encoding) -> Result<Self, ReadError> {
-        super::peek_header(&mut input)?;
+        peek_header(&mut input)?;
         let header = Header::parse(&input.head);
         let path = input.name.clone();
         let (sensor, sensor_from) = match header.sensor().map_err(|m| ReadError::new(&path, Position::File, m))? {

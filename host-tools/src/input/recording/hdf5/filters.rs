@@ -1,7 +1,7 @@
 //! HDF5's compression filters as evcal meets them: a dataset's parameters checked before any
 //! chunk is decoded, and what to say when a filter is missing or a chunk does not decode.
 
-use super::blosc::MAX_CHUNK_BYTES;
+use super::limits::MAX_CHUNK_BYTES;
 
 /// Checks a dataset's compression parameters before any chunk is decompressed: hdf5-metno's
 /// Blosc filter dereferences a null name on an unknown compressor code (a crash, found by

@@ -12,66 +12,18 @@
 //! The sensor size is read from `width`/`height` (or `sensor_width`/`sensor_height`)
 //! attributes of the group or the file when present.
 
-use super::h5attrs::{size_attrs, unit_attr};
-use super::h5chunks::Column;
-use super::h5filters::check_filters;
-use super::{EventSource, Format, Position, ReadError};
+use super::attrs::{size_attrs, unit_attr};
+use super::chunks::Column;
+use super::filters::check_filters;
+use super::limits::READ_ROWS;
+use crate::input::recording::types::{EventSource, Format, Position, ReadError, TimeUnit};
 use evcal_core::event::{Event, SensorSize};
 use hdf5::types::TypeDescriptor;
 use std::path::{Path, PathBuf};
 
-/// Rows read per HDF5 request (per field): constant memory whatever the file size.
-const CHUNK_ROWS: usize = 1 << 16;
-
-/// The unit of integer timestamps.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum TimeUnit {
-    /// Seconds.
-    Seconds,
-    /// Milliseconds.
-    Milliseconds,
-    /// Microseconds (the event-camera convention).
-    Microseconds,
-    /// Nanoseconds (ROS time, e2calib).
-    Nanoseconds,
-}
-
-impl TimeUnit {
-    /// Parses `s`, `ms`, `us` (`µs`), `ns` and the spelled-out names.
-    pub fn parse(s: &str) -> Option<Self> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "s" | "sec" | "second" | "seconds" => Some(Self::Seconds),
-            "ms" | "millisecond" | "milliseconds" => Some(Self::Milliseconds),
-            "us" | "µs" | "μs" | "usec" | "microsecond" | "microseconds" => Some(Self::Microseconds),
-            "ns" | "nsec" | "nanosecond" | "nanoseconds" => Some(Self::Nanoseconds),
-            _ => None,
-        }
-    }
-
-    /// The short name (`s`, `ms`, `us`, `ns`).
-    pub fn name(self) -> &'static str {
-        match self {
-            Self::Seconds => "s",
-            Self::Milliseconds => "ms",
-            Self::Microseconds => "us",
-            Self::Nanoseconds => "ns",
-        }
-    }
-
-    /// `v` of this unit in whole µs, rounded to nearest; `None` on overflow.
-    fn to_us(self, v: i64) -> Option<i64> {
-        match self {
-            Self::Seconds => v.checked_mul(1_000_000),
-            Self::Milliseconds => v.checked_mul(1000),
-            Self::Microseconds => Some(v),
-            Self::Nanoseconds => Some(v.div_euclid(1000) + i64::from(v.rem_euclid(1000) >= 500)),
-        }
-    }
-}
-
 /// Which column layout a file has, by its datasets; `None` if neither.
 pub(crate) fn layout(path: &Path) -> Option<Format> {
-    let f = super::h5file::open(path).ok()?;
+    let f = super::file::open(path).ok()?;
     let has_all = |prefix: &str| ["x", "y", "t", "p"].iter().all(|n| f.link_exists(&format!("{prefix}{n}")));
     if f.link_exists("events_data") {
         None
@@ -126,7 +78,7 @@ impl H5ColumnsReader {
     /// with the time unit `unit` if given, else decided as the module says.
     pub fn open(path: &Path, layout: Format, unit: Option<TimeUnit>) -> Result<Self, ReadError> {
         let err = |m: String| ReadError::new(path, Position::File, m);
-        let file = super::h5file::open(path).map_err(err)?;
+        let file = super::file::open(path).map_err(err)?;
         let prefix = if layout == Format::EventsGroupH5 { "events/" } else { "" };
         let ds = |n: &str| -> Result<hdf5::Dataset, ReadError> {
             let d = file.dataset(&format!("{prefix}{n}")).map_err(|e| err(format!("no dataset '{prefix}{n}': {e}")))?;
@@ -253,7 +205,7 @@ impl H5ColumnsReader {
     }
 
     fn fill(&mut self) -> Result<(), ReadError> {
-        let end = (self.next_row + CHUNK_ROWS).min(self.rows);
+        let end = (self.next_row + READ_ROWS).min(self.rows);
         let r = self.next_row..end;
         let path = &self.path;
         let e = |n: &'static str| {
@@ -345,7 +297,7 @@ fn guess_unit(t: &mut Column, rows: usize) -> Result<(TimeUnit, String), String>
     if rows == 0 {
         return Ok((TimeUnit::Microseconds, "no events; the usual unit".into()));
     }
-    let head = t.read::<i64>(0..rows.min(CHUNK_ROWS))?;
+    let head = t.read::<i64>(0..rows.min(READ_ROWS))?;
     let last = t.read::<i64>(rows - 1..rows)?[0];
     Ok(guess_from(&head, last))
 }

@@ -15,13 +15,13 @@
 //!
 //! Compact datasets (data inside the object header) are read by the library after their
 //! stored size is checked against their shape; contiguous ones lie in one range of the file,
-//! which the library reads within the end the superblock declares (`h5file` holds that
+//! which the library reads within the end the superblock declares (`file` holds that
 //! within the file).
 
 use super::blosc;
-use super::blosc::MAX_CHUNK_BYTES;
-use super::h5filters::filter_hint;
-use super::h5index::ChunkIndex;
+use super::filters::filter_hint;
+use super::index::ChunkIndex;
+use super::limits::MAX_CHUNK_BYTES;
 use hdf5::H5Type;
 use hdf5_sys::h5::hsize_t;
 use hdf5_sys::h5d::{H5D_layout_t, H5Dget_storage_size, H5Dread_chunk};

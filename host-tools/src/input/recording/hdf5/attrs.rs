@@ -2,7 +2,7 @@
 //! the sensor size. A value evcal cannot use is an error saying what is stated, never taken
 //! as no value (a time unit guessed, a size guessed from the events) or rounded.
 
-use super::TimeUnit;
+use crate::input::recording::{bytes::quote, types::stated_sensor, types::TimeUnit};
 use evcal_core::event::SensorSize;
 use hdf5::types::TypeDescriptor;
 
@@ -19,7 +19,7 @@ pub(super) fn unit_attr(loc: &hdf5::Location) -> Option<Result<TimeUnit, String>
         Some(TimeUnit::parse(&s).ok_or_else(|| {
             format!(
                 "the attribute {n}=\"{}\" on {} is not a time unit evcal knows (s, ms, us, ns): set --time-unit",
-                super::bytes::quote(s.as_bytes(), 40),
+                quote(s.as_bytes(), 40),
                 loc_name(loc)
             )
         }))
@@ -62,5 +62,5 @@ pub(super) fn size_attrs(loc: &hdf5::Location) -> Result<Option<SensorSize>, Str
         },
     };
     let (w, h) = (w?, h?);
-    super::stated_sensor(w, h).map_err(|m| format!("{} ({names}) {m}", loc_name(loc)))
+    stated_sensor(w, h).map_err(|m| format!("{} ({names}) {m}", loc_name(loc)))
 }

@@ -20,10 +20,7 @@ use hdf5_sys::h5z::{H5Z_class2_t, H5Zregister, H5Z_CLASS_T_VERS, H5Z_FLAG_REVERS
 use std::ffi::{c_uint, c_void};
 use std::sync::OnceLock;
 
-/// The largest HDF5 chunk read, decoded; writers use kilobytes to a few megabytes. Here, with
-/// the filter that decodes chunks, the lowest of the HDF5 modules, which the others take it
-/// from.
-pub(crate) const MAX_CHUNK_BYTES: u64 = 64 << 20;
+use super::limits::MAX_CHUNK_BYTES;
 
 /// The id HDF5 files name the Blosc filter by (registered with The HDF Group).
 const BLOSC_ID: i32 = 32001;
