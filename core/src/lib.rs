@@ -47,6 +47,7 @@ pub mod config;
 pub mod detect;
 pub mod event;
 pub mod evt;
+mod extent;
 pub mod fit;
 mod math;
 pub mod moments;

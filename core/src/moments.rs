@@ -16,7 +16,7 @@
 //! to a few parts in a million over the few tens of pixels a circle spans.
 
 use crate::{
-    fit::Extent,
+    extent::Extent,
     math::{max, sqrt_exact},
     window::WindowEvent,
 };

@@ -31,6 +31,7 @@ mod pass;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use self::cylinder::MAX_SPREAD;
 use self::{
     centroid::centroid,
     cylinder::{cylinder, MAX_START_RMS},
@@ -38,7 +39,7 @@ use self::{
     events::Events,
     frame::{Frame, Local},
 };
-pub(crate) use self::{cylinder::MAX_SPREAD, frame::Extent};
+use crate::extent::Extent;
 use crate::{
     math::max,
     moments::{Circle, Moments},
