@@ -6,7 +6,7 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 
 # Each step's wall time is printed when the next begins, and all of them at the end: CI's
-# time is a budget (under 30 minutes on 2 cores), kept by knowing where it goes.
+# time is a budget (under 20 minutes on 2 cores; docs/testing.md), kept by knowing where it goes.
 times=()
 step_end() { [ -n "${step_name:-}" ] && times+=("$(printf '%5d s  %s' $((SECONDS - step_t0)) "$step_name")"); return 0; }
 step() { step_end; step_name="$*"; step_t0=$SECONDS; echo; echo "=== $*"; }
