@@ -179,7 +179,7 @@ pub fn run(a: SimulateArgs) -> Result<()> {
     let is_h5 = a.out.extension().is_some_and(|e| e.eq_ignore_ascii_case("h5") || e.eq_ignore_ascii_case("hdf5"));
     let writing = || format!("writing {}", a.out.display());
     let mut out = if is_h5 {
-        Out::H5(EcalibH5Writer::create(&a.out).map_err(anyhow::Error::msg)?)
+        Out::H5(EcalibH5Writer::create(&a.out).and_then(|w| w.with_sensor(sensor)).map_err(anyhow::Error::msg)?)
     } else {
         Out::Text(TextWriter::create(&a.out, Some(sensor)).with_context(writing)?)
     };

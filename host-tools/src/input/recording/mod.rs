@@ -236,7 +236,7 @@ impl Recording {
         let (sensor, len, events): (_, _, Box<dyn EventSource>) = match format {
             Format::EcalibH5 => {
                 let r = H5Reader::open(file).map_err(rename)?;
-                (None, Some(r.len()), Box::new(r))
+                (r.sensor(), Some(r.len()), Box::new(r))
             }
             Format::Aedat4 => {
                 let r = Aedat4Reader::open(file, opts.topic.as_deref()).map_err(rename)?;

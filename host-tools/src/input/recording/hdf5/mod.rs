@@ -30,7 +30,7 @@ pub(super) use cols::layout;
 pub use cols::H5ColumnsReader;
 
 use super::types::{EventSource, Position, ReadError};
-use evcal_core::event::Event;
+use evcal_core::event::{Event, SensorSize};
 use limits::READ_ROWS;
 use std::path::{Path, PathBuf};
 
@@ -43,6 +43,7 @@ pub struct H5Reader {
     chunk: Vec<[f64; 4]>,
     at: usize,
     failed: bool,
+    sensor: Option<SensorSize>,
 }
 
 impl H5Reader {
@@ -75,7 +76,24 @@ impl H5Reader {
             return Err(err(format!("'events_data' has shape {shape:?}; expected N x 4 [x, y, p, t_seconds]")));
         }
         let ds = chunks::Column::open(ds).map_err(|m| err(format!("'events_data': {m}")))?;
-        Ok(Self { path: path.to_path_buf(), ds, rows: shape[0], next_row: 0, chunk: Vec::new(), at: 0, failed: false })
+        // E-Calib's layout states no size; evcal's writer adds `width` and `height` to the file.
+        let root: &hdf5::Location = &file;
+        let sensor = attrs::size_attrs(root).map_err(err)?;
+        Ok(Self {
+            path: path.to_path_buf(),
+            ds,
+            rows: shape[0],
+            next_row: 0,
+            chunk: Vec::new(),
+            at: 0,
+            failed: false,
+            sensor,
+        })
+    }
+
+    /// The sensor size the file's `width` and `height` attributes state, if they do.
+    pub fn sensor(&self) -> Option<SensorSize> {
+        self.sensor
     }
 
     /// Number of events in the file.
@@ -189,6 +207,17 @@ impl EcalibH5Writer {
         Ok(Self { path: path.to_path_buf(), staged, file, data, rows: 0, held: Vec::with_capacity(WRITE_ROWS * 4) })
     }
 
+    /// States the sensor's size in the file (`width` and `height` attributes of its root, as
+    /// DSEC's files state theirs), so that a reader needs no `--sensor`.
+    pub fn with_sensor(self, sensor: SensorSize) -> Result<Self, String> {
+        let fail = |e: hdf5::Error| format!("{}: cannot write the sensor size: {e}", self.path.display());
+        for (name, v) in [("width", sensor.width), ("height", sensor.height)] {
+            let a = self.file.new_attr::<u32>().create(name).map_err(fail)?;
+            a.write_scalar(&u32::from(v)).map_err(fail)?;
+        }
+        Ok(self)
+    }
+
     /// Appends `events`.
     pub fn write(&mut self, events: &[Event]) -> Result<(), String> {
         for e in events {
@@ -268,6 +297,33 @@ mod test {
         std::fs::write(&s, "hello").unwrap();
         let msg = Recording::open(&s).err().unwrap().to_string();
         assert!(msg.contains("fake.h5") && msg.contains("HDF5"), "{msg}");
+    }
+
+    /// evcal's writer states the sensor's size (`simulate --out rec.h5`), its reader takes
+    /// it; E-Calib's own files state none; a size evcal cannot use is an error that says it.
+    #[test]
+    fn the_sensor_size_is_written_and_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let events = [Event { t_us: 1_000_000, x: 5, y: 6, polarity: true }];
+        let sized = dir.path().join("sized.h5");
+        let sensor = SensorSize { width: 640, height: 480 };
+        let mut w = EcalibH5Writer::create(&sized).unwrap().with_sensor(sensor).unwrap();
+        w.write(&events).unwrap();
+        w.finish().unwrap();
+        let rec = Recording::open(&sized).unwrap();
+        assert_eq!(rec.sensor, Some(sensor));
+        assert_eq!(rec.map(Result::unwrap).collect::<Vec<_>>(), events);
+        let plain = dir.path().join("plain.h5");
+        write_ecalib_h5(&plain, &events).unwrap();
+        assert_eq!(Recording::open(&plain).unwrap().sensor, None);
+        let odd = dir.path().join("odd.h5");
+        let f = hdf5::File::create(&odd).unwrap();
+        f.new_dataset_builder().with_data(&ndarray::arr2(&[[5.0f64, 6.0, 1.0, 1.0]])).create("events_data").unwrap();
+        f.new_attr::<f64>().create("width").unwrap().write_scalar(&346.7).unwrap();
+        f.new_attr::<f64>().create("height").unwrap().write_scalar(&260.0).unwrap();
+        drop(f);
+        let msg = Recording::open(&odd).err().unwrap().to_string();
+        assert!(msg.contains("346.7") && msg.contains("not a whole number"), "{msg}");
     }
 
     /// 40 000 chunks of 4 rows, plain and gzip: every row read, in the order written, and the
