@@ -10,7 +10,10 @@ use evcal_host::{
     input::recording::write_ecalib_h5,
     sim::{Light, PixelModel, SimConfig, Trajectory},
 };
-use std::process::Command;
+use std::{
+    path::Path,
+    process::{Command, Output},
+};
 
 /// Seconds simulated, continuously (a simulation that settles the pixels at each window,
 /// as `eval::simulate_windows` does, has no slow pixels' fill: its rings fail with no
@@ -19,6 +22,19 @@ use std::process::Command;
 /// 5–7 at −0.2 … −1.7 % with 15 000-event windows and −1.4 … −2.3 % with 27 500
 /// (docs/notes/sweep.md, "Filled discs in windows of the DAVIS346's duration").
 const SECONDS: f64 = 5.0;
+
+/// `evcal calibrate REC --sensor SENSOR --pattern 4x11 --spacing SPACING --out OUT EXTRA...`.
+fn calibrate(rec: &Path, sensor: &str, spacing: &str, out: &Path, extra: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_evcal"))
+        .arg("calibrate")
+        .arg(rec)
+        .args(["--sensor", sensor, "--pattern", "4x11", "--spacing", spacing])
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
 
 /// The fallback's wiring, on a recording too short for any calibration (0.1 s of the
 /// DAVIS346's cone, three windows): the rings give none, the run detects again with filled
@@ -31,17 +47,7 @@ fn a_run_whose_rings_give_no_calibration_tries_filled_discs() {
     let dir = tempfile::tempdir().unwrap();
     let rec = dir.path().join("short.h5");
     write_ecalib_h5(&rec, &events).unwrap();
-    let calibrate = |extra: &[&str], out: &str| {
-        Command::new(env!("CARGO_BIN_EXE_evcal"))
-            .arg("calibrate")
-            .arg(&rec)
-            .args(["--sensor", "davis346", "--pattern", "4x11", "--spacing", &spacing])
-            .arg("--out")
-            .arg(dir.path().join(out))
-            .args(extra)
-            .output()
-            .unwrap()
-    };
+    let calibrate = |extra: &[&str], out: &str| calibrate(&rec, "davis346", &spacing, &dir.path().join(out), extra);
     let out = calibrate(&[], "auto");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "0.1 s calibrated: {stderr}");
@@ -68,17 +74,8 @@ mod slow {
         let dir = tempfile::tempdir().unwrap();
         let rec = dir.path().join("dim.h5");
         write_ecalib_h5(&rec, &events).unwrap();
-        let calibrate = |extra: &[&str], out: &str| {
-            Command::new(env!("CARGO_BIN_EXE_evcal"))
-                .arg("calibrate")
-                .arg(&rec)
-                .args(["--sensor", "dvxplorer", "--pattern", "4x11", "--spacing", &spacing])
-                .arg("--out")
-                .arg(dir.path().join(out))
-                .args(extra)
-                .output()
-                .unwrap()
-        };
+        let calibrate =
+            |extra: &[&str], out: &str| calibrate(&rec, "dvxplorer", &spacing, &dir.path().join(out), extra);
 
         let out = calibrate(&[], "auto");
         let stderr = String::from_utf8_lossy(&out.stderr);

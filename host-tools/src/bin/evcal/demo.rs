@@ -1,7 +1,8 @@
 //! `evcal demo`: the main job on a built-in default, end to end with known truth.
 
 use crate::calibrate::{check_outputs, export, find_views, list_written, report, say_stale_removed, solve};
-use crate::common::{check_output, outln, run_windowed_simulation, StdoutClosed};
+use crate::common::{check_output, outln, StdoutClosed};
+use crate::simulation::run_windowed_simulation;
 use anyhow::{Context, Result};
 use clap::Args;
 use evcal_core::{detect::DetectConfig, event::SensorSize};

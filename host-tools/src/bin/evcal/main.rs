@@ -15,6 +15,7 @@ mod info;
 mod ranges;
 mod replay;
 mod simulate;
+mod simulation;
 mod target;
 
 use clap::{Parser, Subcommand};

@@ -1,7 +1,8 @@
 //! `evcal simulate`: a simulated recording and its ground truth.
 
-use crate::common::{check_output, run_simulation, truth_json, window_line, write_json, WindowTimes, WindowWhy};
+use crate::common::{check_output, truth_json, window_line, write_json, WindowTimes, WindowWhy};
 use crate::ranges;
+use crate::simulation::run_simulation;
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use evcal_core::{event::SensorSize, window::WindowConfig};

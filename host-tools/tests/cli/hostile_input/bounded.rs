@@ -31,6 +31,19 @@ fn evcal_within(seconds: f64, args: &[&str]) -> (Option<i32>, String, String) {
     }
 }
 
+/// The camera of the synthetic detections (a DAVIS346's, with barrel distortion).
+const TRUTH: evcal_host::calib::Intrinsics = evcal_host::calib::Intrinsics {
+    fx: 352.4,
+    fy: 351.1,
+    cx: 171.3,
+    cy: 128.6,
+    k1: -0.31,
+    k2: 0.12,
+    p1: 0.0,
+    p2: 0.0,
+    k3: 0.0,
+};
+
 /// Writes `n` synthetic views of the 4x11 grid (24 mm) seen by `truth`, one window each 33 ms
 /// from 1 s on, then the first views again at the times `far` (µs).
 fn synthetic_detections(path: &Path, truth: &evcal_host::calib::Intrinsics, n: usize, far: &[u64]) {
@@ -81,17 +94,7 @@ fn calibrate_synthetic(det: &Path, out: &Path, extra: &[&str]) -> Vec<String> {
 #[test]
 fn far_off_window_times_end_within_seconds() {
     let dir = tempfile::tempdir().unwrap();
-    let truth = evcal_host::calib::Intrinsics {
-        fx: 352.4,
-        fy: 351.1,
-        cx: 171.3,
-        cy: 128.6,
-        k1: -0.31,
-        k2: 0.12,
-        p1: 0.0,
-        p2: 0.0,
-        k3: 0.0,
-    };
+    let truth = TRUTH;
     // 1e14 µs is three years on; 2^63 µs 292 000 years (the walk over stretches took forever).
     for far in [[100_000_000_000_000, 100_000_000_033_333], [1 << 63, (1 << 63) + 33_333]] {
         let det = dir.path().join("far.jsonl");
@@ -177,17 +180,7 @@ fn windows_of_thousands_of_centres_are_misses_within_seconds() {
 #[test]
 fn detections_say_their_sensor() {
     let dir = tempfile::tempdir().unwrap();
-    let truth = evcal_host::calib::Intrinsics {
-        fx: 352.4,
-        fy: 351.1,
-        cx: 171.3,
-        cy: 128.6,
-        k1: -0.31,
-        k2: 0.12,
-        p1: 0.0,
-        p2: 0.0,
-        k3: 0.0,
-    };
+    let truth = TRUTH;
     let plain = dir.path().join("plain.jsonl");
     synthetic_detections(&plain, &truth, 30, &[]);
     let text = std::fs::read_to_string(&plain).unwrap();
