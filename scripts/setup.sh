@@ -2,11 +2,15 @@
 # Installs everything evcal needs on a fresh machine of this kind (Debian + rustup).
 # Idempotent: re-running it only checks. Called by scripts/test.sh and the README.
 #   --fuzz   also cargo-fuzz (about a minute to build; scripts/fuzz.sh asks for it)
+#   --host   only what building the host tool `evcal` needs (a C compiler, pkg-config, CMake
+#            >= 3.26 for HDF5): no QEMU, no firmware target, no Python test stack
 set -euo pipefail
 want_fuzz=0
+host_only=0
 for arg in "$@"; do
   case "$arg" in
     --fuzz) want_fuzz=1 ;;
+    --host) host_only=1 ;;
     *) echo "setup: unknown option $arg" >&2; exit 2 ;;
   esac
 done
@@ -22,6 +26,26 @@ if [ "${#need_apt[@]}" -gt 0 ]; then
   SUDO=""; [ "$(id -u)" -ne 0 ] && SUDO="sudo"
   $SUDO apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${need_apt[@]}" >/dev/null
+fi
+
+# CMake >= 3.26 builds HDF5 from source (the hdf5 crate's "static"; Debian 12's cmake is
+# 3.25): from PyPI, pinned, when the one on PATH is older.
+cmake_ok() {
+  command -v cmake >/dev/null 2>&1 || return 1
+  local v
+  v="$(cmake --version | head -1 | awk '{print $3}')"
+  [ "$(printf '%s\n3.26\n' "$v" | sort -V | head -1)" = "3.26" ]
+}
+if ! cmake_ok; then
+  echo "setup: installing CMake 3.31.10 (Python package cmake)"
+  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "cmake==3.31.10"
+  command -v pyenv >/dev/null 2>&1 && pyenv rehash
+  hash -r
+  cmake_ok || { echo "setup: cmake >= 3.26 is still not first on PATH ($(command -v cmake || echo none)); put pip's scripts folder first" >&2; exit 1; }
+fi
+if [ "$host_only" = 1 ]; then
+  echo "setup: ok (the host tool's needs)"
+  exit 0
 fi
 
 # The emulated boards the firmware is tested on (QEMU's mps2-an386 and mps2-an500); without its recommended
@@ -51,22 +75,6 @@ PY
 then
   echo "setup: installing Python packages: ${writers[*]} ${readers[*]} numpy"
   python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "${writers[@]}" "${readers[@]}" numpy
-fi
-
-# CMake >= 3.26 builds HDF5 from source (the hdf5 crate's "static"; Debian 12's cmake is
-# 3.25): from PyPI, pinned, when the one on PATH is older.
-cmake_ok() {
-  command -v cmake >/dev/null 2>&1 || return 1
-  local v
-  v="$(cmake --version | head -1 | awk '{print $3}')"
-  [ "$(printf '%s\n3.26\n' "$v" | sort -V | head -1)" = "3.26" ]
-}
-if ! cmake_ok; then
-  echo "setup: installing CMake 3.31.10 (Python package cmake)"
-  python3 -m pip install --quiet --disable-pip-version-check --root-user-action=ignore "cmake==3.31.10"
-  command -v pyenv >/dev/null 2>&1 && pyenv rehash
-  hash -r
-  cmake_ok || { echo "setup: cmake >= 3.26 is still not first on PATH ($(command -v cmake || echo none)); put pip's scripts folder first" >&2; exit 1; }
 fi
 
 # The core and the firmware build for the Cortex-M4F.

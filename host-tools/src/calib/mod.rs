@@ -28,6 +28,7 @@ mod model;
 #[cfg(test)]
 mod outline_tests;
 mod problem;
+mod rectify;
 mod result;
 mod solve;
 mod stats;
@@ -42,6 +43,7 @@ pub use k3::{k3_displacement_px, K3_NEGLIGIBLE_PX};
 pub use model::{outline_offset, Intrinsics, Pose, PARAMETER_NAMES};
 pub(crate) use problem::board_key;
 pub use problem::{Options, View};
+pub use rectify::optimal_new_camera_matrix;
 pub use result::{CalibError, Calibration, MoveEstimate, PrecisionBin, Rejection, ViewResult};
 
 use crate::stats::{median, median_mad};
@@ -498,35 +500,36 @@ fn residuals(object: &[[f64; 3]], image: &[[f64; 2]], k: &Intrinsics, pose: &Pos
 /// otherwise give every parameter a σ of almost zero however loosely the views fix it.
 const MIN_POINT_STD_PX: f64 = 1.0 / (evcal_core::wire::fixed::UNITS_PER_PX as f64 * 3.464_101_615_137_754_5);
 
-/// Warnings for parameters the views leave poorly constrained: a parameter is named when
-/// moving it by one standard deviation moves the image of a sensor corner by more than
-/// half a pixel (what the points can tell apart is far finer).
-fn constraint_warnings(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> Vec<String> {
-    let corner = |k: &Intrinsics| {
-        // The normalised point that the base camera sees at the sensor's corner.
-        let (u, v) = (f64::from(size[0]) - 1.0, f64::from(size[1]) - 1.0);
-        let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
-        (x, y)
-    };
-    let (x, y) = corner(k);
+/// Warnings for parameters the views leave poorly constrained, in one line (none when
+/// none is): a parameter is named when moving it by one standard deviation moves the image of
+/// a sensor corner by more than half a pixel (what the points can tell apart is far finer).
+/// The pipeline calls it again once it has widened `std_dev`, so that the σ it quotes is
+/// the one printed.
+pub fn constraint_warnings(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> Vec<String> {
+    // The normalised point that the base camera sees at the sensor's corner.
+    let (u, v) = (f64::from(size[0]) - 1.0, f64::from(size[1]) - 1.0);
+    let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
     let base = k.distort(x, y);
-    let mut out = Vec::new();
+    let mut loose = Vec::new();
     for (i, name) in PARAMETER_NAMES.iter().enumerate() {
-        if std_dev[i] <= 0.0 {
+        if std_dev[i].is_nan() || std_dev[i] <= 0.0 {
             continue;
         }
         let mut a = k.to_array();
         a[i] += std_dev[i];
         let moved = Intrinsics::from_array(a).distort(x, y);
         let shift = (moved[0] - base[0]).hypot(moved[1] - base[1]);
-        if shift > 0.5 {
-            out.push(format!(
-                "{name} is poorly constrained: ±{:.3e} (1σ) moves the image corner by {shift:.2} px; add views that fill the sensor's corners and tilt the target more",
-                std_dev[i]
-            ));
+        if shift.is_nan() || shift > 0.5 {
+            loose.push(format!("{name} ±{:.3e} moves it {shift:.2} px", std_dev[i]));
         }
     }
-    out
+    if loose.is_empty() {
+        return Vec::new();
+    }
+    vec![format!(
+        "poorly constrained (1σ moves the image of the sensor's corner by more than 0.5 px): {}; add views that fill the sensor's corners and tilt the target more",
+        loose.join(", ")
+    )]
 }
 
 /// Views of an asymmetric 4x11 grid (24 mm) seen by `truth` from a spread of poses, with

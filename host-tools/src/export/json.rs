@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins`.
+//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins verdict verdict_actions`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
@@ -97,6 +97,13 @@ pub struct ResultJson {
     /// (`--no-robust`). All weights equal: centres fitted to more events erred no less.
     #[serde(default)]
     pub precision_bins: Vec<PrecisionBin>,
+    /// The run's verdict: `"good"`, `"usable"` or `"not a calibration"`
+    /// (`evcal calibrate`'s exit status 0, 4 or 3); `null` when not judged.
+    #[serde(default)]
+    pub verdict: Option<String>,
+    /// What to do about a `"usable"` verdict, the most useful first (at most three).
+    #[serde(default)]
+    pub verdict_actions: Vec<String>,
 }
 
 /// Reads `std_dev` back: JSON has no infinity, so `serde_json` writes an unbounded σ as
@@ -217,6 +224,8 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         circle_radius_m: cal.circle_radius_m,
         calibration_failed: None,
         precision_bins: cal.precision_bins.clone(),
+        verdict: None,
+        verdict_actions: Vec::new(),
     })
 }
 

@@ -32,7 +32,7 @@ mod stale;
 mod yaml;
 
 pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
-pub use report::{render_report, write_report, REPORT_SIZE};
+pub use report::{render_report, write_report, Notes, NOTE_LINES, REPORT_SIZE};
 pub use stale::{remove_stale, written_by_evcal, Stale, YAML_MARK};
 pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
 
@@ -124,12 +124,18 @@ pub struct Export<'a> {
     pub calibration_time: Option<&'a str>,
     /// The shift taken out of the centres before the solve, for the JSON result.
     pub edge_shift: Option<crate::views::edge_shift::EdgeShift>,
-    /// Why the result is no calibration ([`crate::pipeline::verdict`]): then the files are
+    /// Why the result is no calibration ([`crate::pipeline::loose_params`]): then the files are
     /// [`FAILED_FILE_NAMES`], none a program would load as a calibration (the JSON under
     /// another name with its `calibration_failed`, each YAML file's entries commented out
     /// below `calibration_failed`, so no `camera_matrix`; the report stamped), and
     /// `json_copy` is not written.
     pub failure: Option<&'a str>,
+    /// The run's verdict ([`crate::pipeline::Verdict`]): in the JSON result's `verdict` and
+    /// `verdict_actions`, and on the report. `None` leaves them out (`null`).
+    pub verdict: Option<&'a crate::pipeline::Verdict>,
+    /// What the run advises beside the solver's warnings (coverage, tilt, views), drawn on
+    /// the report with them.
+    pub advice: &'a [String],
     /// Another file to write the JSON result to (`evcal calibrate --json`), with the others:
     /// all are in place or none is replaced. Nothing more when it is the folder's own
     /// `calibration.json`; nothing at all for a failed run (see `failure`).
@@ -161,6 +167,8 @@ impl<'a> Export<'a> {
             calibration_time: None,
             edge_shift: None,
             failure: None,
+            verdict: None,
+            advice: &[],
             json_copy: None,
         }
     }
@@ -221,6 +229,10 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     let mut json = result_json(cal, export.origins, export.counts)?;
     json.edge_shift = export.edge_shift;
     json.calibration_failed = export.failure.map(str::to_owned);
+    if let Some(v) = export.verdict {
+        json.verdict = Some(v.grade().to_owned());
+        json.verdict_actions = v.actions().to_vec();
+    }
     json.warnings.extend(warnings.iter().cloned());
     let json = serde_json::to_string_pretty(&json)? + "\n";
 
@@ -238,7 +250,11 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
         t.push_str(&yaml_mark());
     }
     let report = path(names[4]);
-    let png = render_report(&report, cal, export.views, export.origins, export.timeline, export.failure)?;
+    let verdict = export.verdict.map(ToString::to_string);
+    let all_warnings: Vec<String> =
+        cal.warnings.iter().chain(&written.warnings).chain(export.advice).cloned().collect();
+    let notes = Notes { failure: export.failure, verdict: verdict.as_deref(), warnings: &all_warnings };
+    let png = render_report(&report, cal, export.views, export.origins, export.timeline, &notes)?;
     let mut contents: Vec<(PathBuf, &[u8])> =
         names.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();
     contents.push((report, &png));

@@ -7,6 +7,7 @@
 
 use super::{ExportError, Result};
 use crate::calib::{Calibration, View};
+use crate::views::select::COVERAGE_CELLS;
 use crate::views::{view_residuals, ViewOrigin, WindowSample};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -24,7 +25,7 @@ const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
 /// registration serves every text.
 const FAMILY: &str = "sans-serif";
 /// Sensor cells counted for coverage: columns × rows.
-const CELLS: (usize, usize) = (8, 6);
+const CELLS: (usize, usize) = (COVERAGE_CELLS[0], COVERAGE_CELLS[1]);
 
 const BLUE: RGBColor = RGBColor(31, 119, 180);
 const ORANGE: RGBColor = RGBColor(255, 127, 14);
@@ -32,6 +33,10 @@ const GREEN: RGBColor = RGBColor(44, 160, 44);
 const RED: RGBColor = RGBColor(214, 39, 40);
 const GREY: RGBColor = RGBColor(150, 150, 150);
 const DARK: RGBColor = RGBColor(40, 40, 40);
+/// A good verdict's colour.
+const GREEN_DARK: RGBColor = RGBColor(20, 120, 40);
+/// A usable verdict's colour.
+const AMBER: RGBColor = RGBColor(190, 110, 0);
 
 /// Tick labels and axis names.
 const LABELS: (&str, u32) = (FAMILY, 15);
@@ -60,8 +65,8 @@ fn font_ready() -> std::result::Result<(), String> {
 
 /// Draws the report of `cal` into a PNG at `path` ([`REPORT_SIZE`]). `views` are the views
 /// given to the solver, `origins` where each came from (used to mark the views on the
-/// timeline; may be empty), `timeline` every detection window (may be empty); `failure`, why
-/// the result is no calibration, stamps the report with it. Written to a temporary file
+/// timeline; may be empty), `timeline` every detection window (may be empty); `notes` what
+/// the run says of the result (a failure stamps the report). Written to a temporary file
 /// renamed over `path` ([`super::atomic`]).
 pub fn write_report(
     path: &Path,
@@ -69,11 +74,25 @@ pub fn write_report(
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
-    failure: Option<&str>,
+    notes: &Notes<'_>,
 ) -> Result<()> {
-    let png = render_report(path, cal, views, origins, timeline, failure)?;
+    let png = render_report(path, cal, views, origins, timeline, notes)?;
     Ok(super::atomic::write_file(path, &png)?)
 }
+
+/// What the run says of the result, written on the report above the figures.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Notes<'a> {
+    /// Why the result is no calibration: the report is stamped with it, in red.
+    pub failure: Option<&'a str>,
+    /// The verdict's line (`verdict: good`, ...).
+    pub verdict: Option<&'a str>,
+    /// The run's warnings; the first [`NOTE_LINES`] are drawn.
+    pub warnings: &'a [String],
+}
+
+/// The most warnings drawn on the report: the console and the JSON result hold them all.
+pub const NOTE_LINES: usize = 4;
 
 /// The PNG bytes [`write_report`] writes to `path` (named in errors). Drawn into memory, so
 /// that a failure leaves no half-drawn file. The PNG names evcal as its `Software`
@@ -84,9 +103,9 @@ pub fn render_report(
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
-    failure: Option<&str>,
+    notes: &Notes<'_>,
 ) -> Result<Vec<u8>> {
-    render(cal, views, origins, timeline, failure)
+    render(cal, views, origins, timeline, notes)
         .map_err(|message| ExportError::Report { path: path.to_path_buf(), message })
 }
 
@@ -101,7 +120,7 @@ fn render(
     views: &[View],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
-    failure: Option<&str>,
+    notes: &Notes<'_>,
 ) -> std::result::Result<Vec<u8>, String> {
     font_ready()?;
     let res = view_residuals(views, cal).map_err(|e| e.to_string())?;
@@ -109,7 +128,7 @@ fn render(
     let mut rgb = vec![0u8; w as usize * h as usize * 3];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        draw(&root, cal, views, &res, origins, timeline, failure).map_err(|e| e.to_string())?;
+        draw(&root, cal, views, &res, origins, timeline, notes).map_err(|e| e.to_string())?;
         root.present().map_err(|e| e.to_string())?;
     }
     let mut out = Vec::new();
@@ -134,14 +153,14 @@ fn draw(
     res: &[Vec<[f64; 2]>],
     origins: &[ViewOrigin],
     timeline: &[WindowSample],
-    failure: Option<&str>,
+    notes: &Notes<'_>,
 ) -> DrawResult {
     root.fill(&WHITE)?;
     // Room above the title, which plotters sets almost against the edge.
     let root = root.margin(10, 0, 0, 0);
     // A failed run's report says so first, in red, so that no one takes its figures for a
     // calibration's.
-    let root = match failure {
+    let root = match notes.failure {
         Some(why) => {
             let stamp = format!("NOT A CALIBRATION: {}", why.replace('\n', " "));
             let stamp: String = stamp.chars().take(STAMP_CHARS).collect();
@@ -150,20 +169,41 @@ fn draw(
         None => root,
     };
     let k = &cal.intrinsics;
-    let points: usize = cal.views.iter().map(|v| v.points).sum();
+    // Counted as the console counts them: strays set aside are not among the points.
+    let points: usize = cal.views.iter().map(|v| v.points).sum::<usize>() - cal.stray_points;
+    let sd = &cal.std_dev;
     let title = format!(
-        "evcal calibration {}×{} — fx {:.2}  fy {:.2}  cx {:.2}  cy {:.2}  k1 {:.4}  k2 {:.4}  p1 {:.2e}  p2 {:.2e}  k3 {:.4}",
-        cal.image_size[0], cal.image_size[1], k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3
+        "evcal calibration {}×{} — fx {:.2} ±{:.2}  fy {:.2} ±{:.2}  cx {:.2} ±{:.2}  cy {:.2} ±{:.2} (1σ)",
+        cal.image_size[0], cal.image_size[1], k.fx, sd[0], k.fy, sd[1], k.cx, sd[2], k.cy, sd[3]
     );
     let body = root.titled(&title, (FAMILY, 26))?;
+    let distortion = format!(
+        "k1 {:.4} ±{:.4}  k2 {:.4} ±{:.4}  p1 {:.2e} ±{:.1e}  p2 {:.2e} ±{:.1e}  k3 {:.4} ±{:.4}",
+        k.k1, sd[4], k.k2, sd[5], k.p1, sd[6], k.p2, sd[7], k.k3, sd[8]
+    );
+    let body = body.titled(&distortion, (FAMILY, 20).into_font().color(&DARK))?;
     let subtitle = format!(
-        "RMS {:.3} px over {points} points of {} views ({} set aside); median view {:.3} px",
+        "RMS {:.3} px over {points} points of {} views ({} views set aside, {} stray points); median view {:.3} px",
         cal.rms_px,
         cal.views.len(),
         cal.rejected.len(),
+        cal.stray_points,
         cal.median_view_px
     );
-    let body = body.titled(&subtitle, (FAMILY, 20).into_font().color(&DARK))?;
+    let mut body = body.titled(&subtitle, (FAMILY, 20).into_font().color(&DARK))?;
+    if let Some(v) = notes.verdict {
+        let colour = match notes.failure {
+            Some(_) => RED,
+            None if v.ends_with("good") => GREEN_DARK,
+            None => AMBER,
+        };
+        let line: String = v.chars().take(STAMP_CHARS).collect();
+        body = body.titled(&line, (FAMILY, 22).into_font().color(&colour))?;
+    }
+    for w in notes.warnings.iter().take(NOTE_LINES) {
+        let line: String = format!("warning: {w}").chars().take(STAMP_CHARS + 40).collect();
+        body = body.titled(&line, (FAMILY, 16).into_font().color(&DARK))?;
+    }
     let panels = body.split_evenly((2, 2));
     per_view_panel(&panels[0], cal, views.len())?;
     scatter_panel(&panels[1], cal, res)?;
@@ -326,8 +366,13 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
     }
     let covered = counts.iter().flatten().filter(|&&n| n > 0).count();
     let most = counts.iter().flatten().copied().max().unwrap_or(0).max(1);
-    let caption =
-        format!("Sensor coverage: {covered} of {} cells ({}×{}) hold points", CELLS.0 * CELLS.1, CELLS.0, CELLS.1);
+    let caption = format!(
+        "Sensor coverage: {covered} of {} cells ({}×{}) hold points ({:.0} %)",
+        CELLS.0 * CELLS.1,
+        CELLS.0,
+        CELLS.1,
+        100.0 * covered as f64 / (CELLS.0 * CELLS.1) as f64
+    );
     let titled = area.titled(&caption, (FAMILY, 20))?;
     let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
     let mut chart = ChartBuilder::on(&titled)
@@ -448,7 +493,7 @@ mod test {
         let (views, cal, origins, timeline) = setup(&TRUTH, false);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("report.png");
-        write_report(&path, &cal, &views, &origins, &timeline, None).unwrap();
+        write_report(&path, &cal, &views, &origins, &timeline, &Notes::default()).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
         let img = decode(&bytes);
@@ -469,24 +514,24 @@ mod test {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("report.png");
         // No timeline and no origins: the panels are drawn empty.
-        write_report(&path, &cal, &views, &[], &[], None).unwrap();
+        write_report(&path, &cal, &views, &[], &[], &Notes::default()).unwrap();
         assert_eq!((decode(&std::fs::read(&path).unwrap()).0), REPORT_SIZE.0);
         // One window only; non-finite times are left out.
         let one = [
             WindowSample { t_s: 1.0, centres: 0, grid_found: false },
             WindowSample { t_s: f64::NAN, centres: 3, grid_found: true },
         ];
-        write_report(&path, &cal, &views, &[], &one, None).unwrap();
+        write_report(&path, &cal, &views, &[], &one, &Notes::default()).unwrap();
         // A directory that does not exist: an error naming the file, nothing written.
         let bad = dir.path().join("missing/report.png");
-        let e = format!("{:#}", write_report(&bad, &cal, &views, &[], &[], None).unwrap_err());
+        let e = format!("{:#}", write_report(&bad, &cal, &views, &[], &[], &Notes::default()).unwrap_err());
         assert!(e.contains("missing/report.png"), "{e}");
     }
 
     #[test]
     fn cells_cover_the_sensor() {
         assert_eq!(cell([-0.5, -0.5], [346, 260]), Some((0, 0)));
-        assert_eq!(cell([345.4, 259.4], [346, 260]), Some((7, 5)));
+        assert_eq!(cell([345.4, 259.4], [346, 260]), Some((CELLS.0 - 1, CELLS.1 - 1)));
         assert_eq!(cell([345.5, 0.0], [346, 260]), None);
         assert_eq!(cell([f64::NAN, 0.0], [346, 260]), None);
     }

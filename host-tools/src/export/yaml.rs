@@ -1,7 +1,7 @@
 //! The three YAML layouts: OpenCV's `cv::FileStorage`, ROS's `camera_info` (as
 //! `camera_calibration_parsers` writes it) and Kalibr's camchain.
 
-use crate::calib::{k3_displacement_px, Calibration, Intrinsics, K3_NEGLIGIBLE_PX};
+use crate::calib::{k3_displacement_px, optimal_new_camera_matrix, Calibration, Intrinsics, K3_NEGLIGIBLE_PX};
 use std::fmt::Write;
 
 /// A number as every reader here takes it for the same `f64`: Rust's shortest round-trip
@@ -85,7 +85,10 @@ pub fn opencv_yaml(cal: &Calibration, calibration_time: Option<&str>) -> String 
 
 /// The calibration as a ROS `sensor_msgs/CameraInfo` YAML in `camera_calibration_parsers`'
 /// layout: plumb_bob distortion (k1, k2, p1, p2, k3), identity rectification and the
-/// projection `[fx 0 cx 0; 0 fy cy 0; 0 0 1 0]` of a monocular camera.
+/// projection of a monocular camera as ROS's `camera_calibration` writes it: the undistorted
+/// image's camera matrix from OpenCV's `getOptimalNewCameraMatrix` with `alpha = 0`
+/// ([`optimal_new_camera_matrix`]), so that `image_proc`'s rectified image has no invalid
+/// pixel.
 pub fn camera_info_yaml(cal: &Calibration, camera_name: &str) -> String {
     let k = &cal.intrinsics;
     let mut s = String::new();
@@ -102,7 +105,8 @@ pub fn camera_info_yaml(cal: &Calibration, camera_name: &str) -> String {
     let _ = writeln!(s, "distortion_model: plumb_bob");
     matrix(&mut s, "distortion_coefficients", 1, 5, &k.distortion());
     matrix(&mut s, "rectification_matrix", 3, 3, &[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
-    let p = [k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0];
+    let m = optimal_new_camera_matrix(k, cal.image_size);
+    let p = [m[0], 0.0, m[2], 0.0, 0.0, m[4], m[5], 0.0, 0.0, 0.0, 1.0, 0.0];
     matrix(&mut s, "projection_matrix", 3, 4, &p);
     s
 }
@@ -215,9 +219,10 @@ pub(super) mod test {
         assert_eq!(data_after(&ros, "camera_matrix"), camera_matrix(&k));
         assert_eq!(data_after(&ros, "distortion_coefficients"), k.distortion());
         assert_eq!(data_after(&ros, "rectification_matrix"), [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let m = optimal_new_camera_matrix(&k, cal.image_size);
         assert_eq!(
             data_after(&ros, "projection_matrix"),
-            [k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]
+            [m[0], 0.0, m[2], 0.0, 0.0, m[4], m[5], 0.0, 0.0, 0.0, 1.0, 0.0]
         );
 
         let (kalibr, _) = kalibr_camchain_yaml(&cal, "/dvs/events");
@@ -321,6 +326,41 @@ assert fs.getNode("calibration_time").string() == "Sat Nov 23 07:00:00 2024", fs
     }
 
     #[test]
+    fn camera_info_projection_is_opencvs_optimal_new_camera_matrix() {
+        // ROS's camera_calibration writes P = getOptimalNewCameraMatrix(K, D, size, 0); a
+        // strong barrel lens, a mild one with tangential terms, and one with k3.
+        let dir = tempfile::tempdir().unwrap();
+        for (n, k) in [
+            TRUTH,
+            Intrinsics { k1: -0.1, k2: 0.02, p1: 4e-4, p2: -3e-4, k3: 0.0, ..TRUTH },
+            Intrinsics { k1: -0.28, k2: 0.09, p1: 0.0, p2: 0.0, k3: -0.02, ..TRUTH },
+        ]
+        .iter()
+        .enumerate()
+        {
+            let path = dir.path().join(format!("k{n}.txt"));
+            let mut line = format!("{} {}", 346, 260);
+            for v in camera_matrix(k).iter().chain(&k.distortion()) {
+                line += &format!(" {v:?}");
+            }
+            std::fs::write(&path, line).unwrap();
+            let script = r#"
+import sys, cv2, numpy as np
+v = [float(x) for x in open(sys.argv[1]).read().split()]
+K = np.array(v[2:11]).reshape(3, 3); D = np.array(v[11:16])
+M, _ = cv2.getOptimalNewCameraMatrix(K, D, (int(v[0]), int(v[1])), 0)
+print("M", *map(repr, M.flatten().tolist()))
+"#;
+            let Some(out) = python("cv2", "opencv-python-headless", script, &path) else { return };
+            let theirs = &parse_lines(&out)["M"];
+            let ours = optimal_new_camera_matrix(k, [346, 260]);
+            for (a, b) in ours.iter().zip(theirs) {
+                assert!((a - b).abs() <= 1e-6 * b.abs().max(1.0), "case {n}: ours {ours:?}, OpenCV's {theirs:?}");
+            }
+        }
+    }
+
+    #[test]
     fn pyyaml_reads_camera_info_and_camchain() {
         let (_, mut cal, _, _) = setup(&TRUTH, false);
         // A coefficient small enough to be written with an exponent.
@@ -348,7 +388,8 @@ for m, shape in [("camera_matrix", (3, 3)), ("distortion_coefficients", (1, 5)),
         assert_eq!(got["camera_matrix"], camera_matrix(&k));
         assert_eq!(got["distortion_coefficients"], k.distortion());
         assert_eq!(got["rectification_matrix"], [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
-        assert_eq!(got["projection_matrix"], [k.fx, 0.0, k.cx, 0.0, 0.0, k.fy, k.cy, 0.0, 0.0, 0.0, 1.0, 0.0]);
+        let m = optimal_new_camera_matrix(&k, cal.image_size);
+        assert_eq!(got["projection_matrix"], [m[0], 0.0, m[2], 0.0, 0.0, m[4], m[5], 0.0, 0.0, 0.0, 1.0, 0.0]);
 
         let chain = dir.path().join("kalibr_camchain.yaml");
         std::fs::write(&chain, kalibr_camchain_yaml(&cal, "/dvs/events").0).unwrap();

@@ -19,13 +19,18 @@ use std::fmt;
 
 #[cfg(test)]
 mod tests;
+mod verdict;
 mod verdicts;
 mod views;
 
+pub use verdict::{
+    Verdict, EXIT_GOOD, EXIT_NOT_A_CALIBRATION, EXIT_USABLE, GOOD_CENTRE_PX, GOOD_COVERAGE, GOOD_FOCAL_RELATIVE,
+    GOOD_RMS_PX, GOOD_VIEWS, MAX_ACTIONS,
+};
 pub use verdicts::{
-    calibrate_with_disc_fallback, disc_fallback_rejects, no_calibration, verdict, Chosen, DiscFallback, DiscRejection,
-    Loose, LooseParam, Looseness, NoCalibration, WeakFocal, WeakFocalCause, DISC_FALLBACK_FOCAL_RELATIVE,
-    FAILED_RELATIVE, FOCAL_WARN_RELATIVE,
+    calibrate_with_disc_fallback, disc_fallback_rejects, loose_params, no_calibration, Chosen, DiscFallback,
+    DiscRejection, Loose, LooseParam, Looseness, NoCalibration, WeakFocal, WeakFocalCause,
+    DISC_FALLBACK_FOCAL_RELATIVE, FAILED_RELATIVE, FOCAL_WARN_RELATIVE,
 };
 pub use views::{view_of, views_from_windows, GridStats, Views};
 
@@ -106,7 +111,7 @@ pub struct Outcome {
     /// `None` when it is not.
     pub weak_focal: Option<WeakFocal>,
     /// Why the result is no calibration at all, when the views leave a parameter so loose
-    /// that no value printed could be trusted ([`verdict`]); `None` for a calibration.
+    /// that no value printed could be trusted ([`loose_params`]); `None` for a calibration.
     pub failure: Option<Loose>,
 }
 
@@ -260,6 +265,8 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     if let (Some(s), Some(sd)) = (edge_shift.as_mut(), calibration.shift_std_px) {
         s.std_px = s.std_px.max(sd);
     }
+    // The warnings quote the σ printed, widened above.
+    calibration.warnings = calib::constraint_warnings(&calibration.intrinsics, &calibration.std_dev, setup.image_size);
     let without_k3 =
         if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
             let opts = calib::Options { fix_k3: true, ..grouped.clone() };
@@ -272,7 +279,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     let advice = advice(&calibration, &coverage);
     let lag = edge_shift.and_then(|s| s.by_thickness).map(|b| b.change);
     let weak_focal = WeakFocal::of(&calibration, &coverage, lag.as_ref());
-    let failure = verdict(&calibration);
+    let failure = loose_params(&calibration);
     Ok(Outcome {
         selection,
         used,

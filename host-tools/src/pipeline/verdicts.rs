@@ -161,7 +161,7 @@ impl fmt::Display for Loose {
 
 /// Why `cal` is no calibration, if it is not: a parameter the views leave so loose that its
 /// printed value means nothing (beyond [`FAILED_RELATIVE`]).
-pub fn verdict(cal: &Calibration) -> Option<Loose> {
+pub fn loose_params(cal: &Calibration) -> Option<Loose> {
     let (k, sd) = (&cal.intrinsics, &cal.std_dev);
     let size = cal.image_size.map(f64::from);
     let mut params = Vec::new();

@@ -162,10 +162,12 @@ impl Coverage {
         let mut counts = vec![0u32; cw * ch];
         let mut regions = [[0u32; 3]; 3];
         for p in views.iter().flat_map(|v| &v.image) {
-            if !(p[0] >= 0.0 && p[1] >= 0.0 && p[0] < w && p[1] < h) {
+            // Pixel centres are at integers: the sensor spans [-0.5, w - 0.5], as the
+            // report's map draws it.
+            let (fx, fy) = ((p[0] + 0.5) / w, (p[1] + 0.5) / h);
+            if !((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy)) {
                 continue;
             }
-            let (fx, fy) = (p[0] / w, p[1] / h);
             counts[(fy * ch as f64) as usize * cw + (fx * cw as f64) as usize] += 1;
             // Corner and edge regions are the outer sixth of the sensor on each side: where
             // distortion is largest and least seen.
@@ -243,6 +245,13 @@ impl TiltSpread {
 /// the distance, degrees.
 pub const GOOD_TILT_DEG: f64 = 20.0;
 
+/// Below this fraction of the sensor's coverage cells with points, the advice is to sweep
+/// the target over all of it.
+pub const WELL_COVERED: f64 = 0.6;
+
+/// Fewer views than this, and the advice is to record more.
+pub const FEW_VIEWS: usize = 10;
+
 /// What the user should know about the views behind a calibration, and what motion would
 /// make it better. Empty when nothing is amiss.
 pub fn advice(cal: &Calibration, coverage: &Coverage) -> Vec<String> {
@@ -253,7 +262,7 @@ pub fn advice(cal: &Calibration, coverage: &Coverage) -> Vec<String> {
             coverage.empty_regions.join(", "),
             if coverage.empty_regions.len() == 1 { "it" } else { "them" }
         ));
-    } else if coverage.covered < 0.6 {
+    } else if coverage.covered < WELL_COVERED {
         out.push(format!(
             "the detected points cover {:.0} % of the sensor; sweep the target over all of it",
             100.0 * coverage.covered
@@ -273,7 +282,7 @@ pub fn advice(cal: &Calibration, coverage: &Coverage) -> Vec<String> {
             axes.join(" and ")
         ));
     }
-    if cal.views.len() < 10 {
+    if cal.views.len() < FEW_VIEWS {
         out.push(format!("only {} views used: record more, from different places", cal.views.len()));
     }
     out

@@ -59,6 +59,18 @@ fn evcal_stdin(args: &[&str], stdin: &[u8]) -> (Option<i32>, String, String) {
     (o.status.code(), String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
 }
 
+/// Asserts that `evcal calibrate` gave a calibration: exit status 0 (`verdict: good`) or 4
+/// (`verdict: usable, but ...`, as a short test recording's is), the one its JSON result
+/// `json` says (`null` when the run wrote none).
+#[track_caller]
+fn assert_calibrated(code: Option<i32>, json: &serde_json::Value, err: &str) {
+    let verdict = json["verdict"].as_str();
+    assert!(
+        matches!((code, verdict), (Some(0), Some("good")) | (Some(4), Some("usable"))),
+        "status {code:?}, verdict {verdict:?}: {err}"
+    );
+}
+
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }

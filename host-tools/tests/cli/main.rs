@@ -13,3 +13,4 @@ mod hostile_input;
 mod info_cli;
 mod read_options;
 mod target;
+mod verdict;

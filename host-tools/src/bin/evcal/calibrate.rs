@@ -15,7 +15,7 @@ use evcal_host::{
     input::recording::{parse_sensor, OpenOptions, Recording, STDIN_NAME},
     pipeline::{
         calibrate_views, calibrate_with_disc_fallback, no_calibration, views_from_windows, Chosen, DiscFallback,
-        NoCalibration, Outcome, PipelineError, Setup, Views,
+        NoCalibration, Outcome, PipelineError, Setup, Verdict, Views,
     },
     views::grid::Pattern,
 };
@@ -32,21 +32,30 @@ pub struct CalibrateArgs {
     /// first) or detections collected earlier (`.jsonl`, as `evcal detect`, `replay` and
     /// `collect` write them). `-`: standard input, read as detections if it starts with '{'.
     pub input: PathBuf,
-    #[command(flatten)]
-    pub read: ReadArgs,
-    #[command(flatten)]
-    pub core: CoreArgs,
-    #[command(flatten)]
+    #[command(flatten, next_help_heading = "Target (as printed)")]
     pub target: TargetArgs,
-    #[command(flatten)]
-    pub solve: SolveArgs,
     /// Folder for the outputs: calibration.json, opencv.yaml, camera_info.yaml,
-    /// kalibr_camchain.yaml, report.png.
-    #[arg(long, default_value = "evcal-out")]
+    /// kalibr_camchain.yaml, report.png (a result that is no calibration: *.failed.*).
+    #[arg(long, default_value = "evcal-out", help_heading = "Output")]
     pub out: PathBuf,
     /// Also write the JSON result here (the same as calibration.json in --out).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", help_heading = "Output")]
     pub json: Option<PathBuf>,
+    /// No progress bars or notes on standard error.
+    #[arg(long, short, conflicts_with = "verbose", help_heading = "Output")]
+    pub quiet: bool,
+    /// Also say how the run got to its result.
+    ///
+    /// Each view set aside and why, the centres' smoothing and lag, the weights, how σ was
+    /// computed, the coverage map and the target's layout.
+    #[arg(long, short, help_heading = "Output")]
+    pub verbose: bool,
+    #[command(flatten, next_help_heading = "Model")]
+    pub solve: SolveArgs,
+    #[command(flatten, next_help_heading = "Advanced: reading the recording")]
+    pub read: ReadArgs,
+    #[command(flatten, next_help_heading = "Advanced: detection")]
+    pub core: CoreArgs,
     /// Never fit filled discs, not even when the rings alone give no calibration.
     ///
     /// By default a recording whose ring fits give no calibration (no grid, too few views,
@@ -55,31 +64,33 @@ pub struct CalibrateArgs {
     /// views fix the focal length within 1 % (a disc's centre may lie a pixel off its
     /// circle's, which a handful of views does not average out); the run says so.
     /// Recordings that calibrate from rings are never fitted with discs.
-    #[arg(long, conflicts_with = "filled_discs")]
+    #[arg(long, conflicts_with = "filled_discs", help_heading = "Advanced: detection")]
     pub no_filled_discs: bool,
-    /// No progress bars or notes on standard error.
-    #[arg(long, short)]
-    pub quiet: bool,
 }
 
 /// The target as printed.
 #[derive(Args, Clone)]
 pub struct TargetArgs {
-    /// The asymmetric circle grid, ROWSxCOLS: circles per column x columns (E-Calib's and
-    /// OpenCV's convention; 4x11 is OpenCV's acircles pattern). The layout is echoed; compare
-    /// it with the board.
+    /// The asymmetric circle grid, ROWSxCOLS: circles per column x columns.
+    ///
+    /// E-Calib's and OpenCV's convention; 4x11 is OpenCV's acircles pattern (`evcal target`
+    /// draws it). `-v` echoes the layout; compare it with the board.
     #[arg(long, value_name = "ROWSxCOLS")]
     pub pattern: String,
-    /// Spacing S in metres: circles in one column are 2·S apart, neighbouring columns S
-    /// apart (offset by S vertically). The focal length does not depend on it; the poses do.
+    /// Spacing S in metres (OpenCV's squareSize, Kalibr's spacingMeters).
+    ///
+    /// Circles in one column are 2·S apart, neighbouring columns S apart (offset by S
+    /// vertically). The focal length does not depend on it; the poses do.
     #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     pub spacing: f64,
-    /// Radius of the printed circles, metres. A circle seen at a slant images as an ellipse
-    /// whose centre is not the image of the circle's centre (the nearer half is drawn
-    /// larger); the solve models where each outline's centre lies, which takes the radius.
-    /// Default: estimated from the fitted radii (a few percent short, which leaves a few
-    /// thousandths of a pixel). From a twentieth of --spacing to half the diagonal spacing
-    /// (0.707 --spacing), where neighbouring circles would touch.
+    /// Radius of the printed circles, metres.
+    ///
+    /// A circle seen at a slant images as an ellipse whose centre is not the image of the
+    /// circle's centre (the nearer half is drawn larger); the solve models where each
+    /// outline's centre lies, which takes the radius. Default: estimated from the fitted
+    /// radii (a few percent short, which leaves a few thousandths of a pixel). From a
+    /// twentieth of --spacing to half the diagonal spacing (0.707 --spacing), where
+    /// neighbouring circles would touch.
     #[arg(long, value_name = "METRES", allow_negative_numbers = true)]
     pub radius: Option<f64>,
 }
@@ -93,49 +104,59 @@ pub struct SolveArgs {
     /// Keep p1 = p2 = 0.
     #[arg(long)]
     pub zero_tangential: bool,
-    /// Keep fy/fx at 1 (square pixels): one focal length is solved for, and fy = fx exactly,
-    /// their σ alike.
+    /// Keep fy/fx at 1 (square pixels).
+    ///
+    /// One focal length is solved for, and fy = fx exactly, their σ alike.
     #[arg(long)]
     pub fix_aspect_ratio: bool,
-    /// Plain least squares, as OpenCV: no stray points set aside or down-weighted, no views
-    /// set aside, every centre weighed alike (by default each weighs as precise as centres
+    /// Plain least squares, as OpenCV.
+    ///
+    /// No stray points set aside or down-weighted, no views set aside, every centre weighed
+    /// alike (by default each weighs as precise as centres
     /// fitted to as many events prove in the same run).
-    #[arg(long)]
+    #[arg(help_heading = "Advanced: the solve", long)]
     pub no_robust: bool,
-    /// Leave out a view whose points moved less than this (RMS, px) from a kept view. 0, the
-    /// default, keeps every window's view: no two windows share an event, so each is a
-    /// measurement of its own even where the board barely moved, and keeping them all
+    /// Leave out a view whose points moved less than this (RMS, px) from a kept view.
+    ///
+    /// 0, the default, keeps every window's view: no two windows share an event, so each is
+    /// a measurement of its own even where the board barely moved, and keeping them all
     /// tightens a slow motion's σ. Raise it (e.g. 2) only to solve faster. 0 to 2000.
-    #[arg(long, default_value_t = 0.0, value_name = "PX", value_parser = ranges::min_change_px,
+    #[arg(help_heading = "Advanced: the solve", long, default_value_t = 0.0, value_name = "PX", value_parser = ranges::min_change_px,
           allow_negative_numbers = true)]
     pub min_change_px: f64,
     /// Most views solved from (evenly thinned beyond it); at least 3.
-    #[arg(long, default_value_t = 500, value_parser = ranges::max_views, allow_negative_numbers = true)]
+    #[arg(help_heading = "Advanced: the solve", long, default_value_t = 500, value_parser = ranges::max_views, allow_negative_numbers = true)]
     pub max_views: usize,
-    /// Solve on the centres as detected. By default evcal measures how far the centres trail
-    /// their circles along the motion (a DVS pixel fires late inside a blurred edge: about a
-    /// tenth of a pixel, which biases the focal length when the board comes and goes) and
-    /// moves them forward by that much first; the amount is printed and in the JSON result.
-    /// It also solves the lag as a distance in proportion to each circle's edge thickness
-    /// (slow, dim pixels smear thick edges more) and counts what that changes in each σ.
-    /// Where a circle images as a slanted ellipse, the same late events also move its centre
-    /// across the motion; the solve estimates how far (the lean, printed and in the JSON
-    /// result), moves the centres back by it and counts it in each σ. Slow pixels' lag also
-    /// bends with the speed (their delay shortens on faster edges): the part in the square
-    /// of each centre's speed is estimated, taken out and counted the same way (the bend).
-    #[arg(long)]
+    /// Solve on the centres as detected.
+    ///
+    /// By default evcal measures how far the centres trail their circles along the motion
+    /// (a DVS pixel fires late inside a blurred edge: about a tenth of a pixel, which
+    /// biases the focal length when the board comes and goes) and moves them forward by
+    /// that much first; the amount is printed and in the JSON result. It also solves the
+    /// lag as a distance in proportion to each circle's edge thickness (slow, dim pixels
+    /// smear thick edges more) and counts what that changes in each σ. Where a circle
+    /// images as a slanted ellipse, the same late events also move its centre across the
+    /// motion; the solve estimates how far (the lean, printed and in the JSON result),
+    /// moves the centres back by it and counts it in each σ. Slow pixels' lag also bends
+    /// with the speed (their delay shortens on faster edges): the part in the square of
+    /// each centre's speed is estimated, taken out and counted the same way (the bend).
+    #[arg(help_heading = "Advanced: the solve", long)]
     pub no_edge_shift: bool,
-    /// Solve on each window's centres alone. By default each board point's centre in a view
-    /// is re-estimated from a quadratic in time through its centres in the windows within
-    /// 70 ms (a 4000-event window holds 20-90 events per circle; five windows say more),
-    /// and a centre far off the path its neighbours trace is replaced by it.
-    #[arg(long)]
+    /// Solve on each window's centres alone.
+    ///
+    /// By default each board point's centre in a view is re-estimated from a quadratic in
+    /// time through its centres in the windows within 70 ms (a 4000-event window holds
+    /// 20-90 events per circle; five windows say more), and a centre far off the path its
+    /// neighbours trace is replaced by it.
+    #[arg(help_heading = "Advanced: the solve", long)]
     pub no_smoothing: bool,
-    /// Take only the grids the finder labels window by window. By default a window where the
-    /// finder cannot label the grid by itself (an edge row too faint, too few points) is
-    /// labelled from the grids found in the windows just before and after it, when every
-    /// point lands within a quarter spacing of where they put it.
-    #[arg(long)]
+    /// Take only the grids the finder labels window by window.
+    ///
+    /// By default a window where the finder cannot label the grid by itself (an edge row
+    /// too faint, too few points) is labelled from the grids found in the windows just
+    /// before and after it, when every point lands within a quarter spacing of where they
+    /// put it.
+    #[arg(help_heading = "Advanced: the solve", long)]
     pub no_tracking: bool,
 }
 
@@ -266,11 +287,14 @@ fn calibrate(
     setup.circle_radius = a.target.radius;
     if !a.quiet {
         eprintln!(
-            "evcal: target {}x{} asymmetric circle grid, spacing {} m, as seen from the front:\n{}",
+            "evcal: target {}x{} asymmetric circle grid, spacing {} m{}",
             pattern.rows,
             pattern.cols,
             pattern.spacing,
-            indent(&pattern.picture())
+            match a.verbose {
+                true => format!(", as seen from the front:\n{}", indent(&pattern.picture())),
+                false => String::new(),
+            }
         );
     }
     let views = find_views(&windows, &setup, a.quiet);
@@ -322,27 +346,27 @@ fn calibrate(
             e
         }
     })?;
-    let written = export(&views, &outcome, &a.out, a.json.as_deref())?;
-    report(&views, &outcome, &setup, None)?;
-    list_written(&written)?;
-    fail_if_no_calibration(&outcome, &a.out)
+    let verdict = Verdict::of(&outcome);
+    let written = export(&views, &outcome, &verdict, &a.out, a.json.as_deref())?;
+    report(&views, &outcome, &setup, None, a.verbose)?;
+    list_written(&written, &[])?;
+    finish(&verdict, &a.out)
 }
 
-/// Exit status of a run whose views gave no calibration ([`Outcome::failure`]): apart from
-/// 1 (an error), so that scripts can tell "no calibration in this recording" from "could not
-/// read it".
-pub const EXIT_NO_CALIBRATION: i32 = 3;
-
-/// Ends the process with [`EXIT_NO_CALIBRATION`] and the reason when `o` is no calibration.
-pub fn fail_if_no_calibration(o: &Outcome, out: &Path) -> Result<()> {
-    if let Some(why) = &o.failure {
+/// Ends the run with its verdict: printed last, and the exit status it gives (0 good, 4
+/// usable, 3 not a calibration; [`Verdict::exit_code`]).
+pub fn finish(verdict: &Verdict, out: &Path) -> Result<()> {
+    if let Verdict::NotACalibration { .. } = verdict {
         eprintln!(
-            "evcal: calibration failed: {why}. The files in {} are named *.failed.* and hold no camera matrix a program would load (no --json copy is written).",
+            "evcal: the files in {} are named *.failed.* and hold no camera matrix a program would load (no --json copy is written)",
             out.display()
         );
-        std::process::exit(EXIT_NO_CALIBRATION);
     }
-    Ok(())
+    outln!("{verdict}")?;
+    match verdict.exit_code() {
+        0 => Ok(()),
+        code => std::process::exit(code),
+    }
 }
 
 fn indent(s: &str) -> String {
@@ -461,11 +485,122 @@ pub fn solve(views: &Views, setup: &Setup) -> Result<Outcome> {
     Ok(calibrate_views(views, setup)?)
 }
 
-/// Prints the result for people; beside `truth` when known.
-pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsics>) -> Result<()> {
+/// Prints the result for people, beside `truth` when known: what a user needs (views, the
+/// error, the parameters with σ, the coverage, warnings) and, when `verbose`, how the run got
+/// there (views set aside, the centres' smoothing and lag, the weights, the σ's method, the
+/// coverage map).
+pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsics>, verbose: bool) -> Result<()> {
     let c = &o.calibration;
     outln!("{}", views.stats.summary())?;
-    outln!("{}", o.selection.summary(&setup.select))?;
+    outln!("{}", views_line(o, &setup.select))?;
+    if verbose {
+        diagnostics(o, setup)?;
+    }
+    let points = c.views.iter().map(|v| v.points).sum::<usize>();
+    let strays = match c.stray_points {
+        0 => String::new(),
+        n => format!(" ({n} stray points set aside; RMS with them {:.3} px)", c.rms_all_px),
+    };
+    outln!(
+        "reprojection error: RMS {:.3} px over {} points{strays}; per view median {:.3} px",
+        c.rms_px,
+        points - c.stray_points,
+        c.median_view_px
+    )?;
+    parameter_table(c, truth)?;
+    if verbose {
+        sigma_method(c)?;
+    }
+    outln!(
+        "coverage: points on {:.0} % of the sensor's cells{}",
+        100.0 * o.coverage.covered,
+        if verbose { ":" } else { " (the map: report.png, or -v)" }
+    )?;
+    if verbose {
+        outln!("{}", indent(&o.coverage.picture()))?;
+    }
+    for w in c.warnings.iter().chain(&o.advice) {
+        outln!("warning: {w}")?;
+    }
+    if let Some(w) = &o.weak_focal {
+        outln!("warning: {w}")?;
+    }
+    Ok(())
+}
+
+/// One line with one count of views: with the grid, solved on, and why the others were not.
+fn views_line(o: &Outcome, select: &evcal_host::views::select::SelectOptions) -> String {
+    let (c, sel) = (&o.calibration, &o.selection);
+    let mut s = format!("views: {} solved on, of {} with the whole grid", c.views.len(), sel.candidates);
+    let mut left = Vec::new();
+    if sel.near_duplicates > 0 {
+        left.push(format!(
+            "{} near-duplicates (moved < {:.1} px from a kept view)",
+            sel.near_duplicates, select.min_change_px
+        ));
+    }
+    if sel.thinned > 0 {
+        left.push(format!("{} thinned to stay within {} views", sel.thinned, select.max_views));
+    }
+    if !c.rejected.is_empty() {
+        left.push(format!("{} set aside by the solve, their error far above the others'", c.rejected.len()));
+    }
+    if !left.is_empty() {
+        s += &format!("; left out: {}", left.join(", "));
+    }
+    s
+}
+
+/// The parameters with their σ, beside `truth` when known.
+fn parameter_table(c: &evcal_host::calib::Calibration, truth: Option<&Intrinsics>) -> Result<()> {
+    let est = c.intrinsics.to_array();
+    match truth {
+        Some(t) => {
+            let t = t.to_array();
+            outln!("  {:<4} {:>12} {:>10} {:>12} {:>12}", "", "estimate", "± 1σ", "truth", "error")?;
+            for i in 0..9 {
+                let err = est[i] - t[i];
+                let rel = if i < 2 { format!(" ({:+.3} %)", 100.0 * err / t[i]) } else { String::new() };
+                outln!(
+                    "  {:<4} {:>12.5} {:>10.5} {:>12.5} {:>+12.5}{rel}",
+                    PARAMETER_NAMES[i],
+                    est[i],
+                    c.std_dev[i],
+                    t[i],
+                    err
+                )?;
+            }
+        }
+        None => {
+            outln!("  {:<4} {:>12} {:>10}", "", "estimate", "± 1σ")?;
+            for i in 0..9 {
+                outln!("  {:<4} {:>12.5} {:>10.5}", PARAMETER_NAMES[i], est[i], c.std_dev[i])?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// How the σ were computed (`-v`).
+fn sigma_method(c: &evcal_host::calib::Calibration) -> Result<()> {
+    let group_s = c.sigma_group_s.unwrap_or(evcal_host::calib::MIN_GROUP_SECONDS);
+    match c.sigma_groups {
+        Some(g) => outln!(
+            "  σ: the larger of each point's own and the scatter of {g} stretches of {group_s:.2} s of the recording, widened ×{:.2} for so few (a longer recording narrows it)",
+            evcal_host::calib::few_groups_factor(g)
+        ),
+        None => outln!(
+            "  σ: each point's error taken as independent (views in fewer than {} stretches of {group_s:.2} s: too few to see how their errors are shared, so it may be too small; views all through at least {:.2} s of the recording give them)",
+            evcal_host::calib::MIN_GROUPS,
+            evcal_host::calib::MIN_GROUPS as f64 * evcal_host::calib::MIN_GROUP_SECONDS
+        ),
+    }
+}
+
+/// How the run got to its result (`-v`): views set aside, the centres' smoothing and lag,
+/// the circles' outlines, the weights.
+fn diagnostics(o: &Outcome, setup: &Setup) -> Result<()> {
+    let c = &o.calibration;
     for r in &c.rejected {
         outln!(
             "  view {} (window {}) set aside: {}",
@@ -524,81 +659,17 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
             r * 1e3
         )?;
     }
-    let points = c.views.iter().map(|v| v.points).sum::<usize>();
-    outln!(
-        "reprojection error: RMS {:.3} px over {} views ({} points); per view mean {:.3}, median {:.3} px",
-        c.rms_px,
-        c.views.len(),
-        points - c.stray_points,
-        c.mean_view_px,
-        c.median_view_px
-    )?;
-    if c.stray_points > 0 {
-        outln!(
-            "  {} stray points set aside (beyond 5σ of all errors: centres fitted to a short arc, blobs merged with circles); RMS with them {:.3} px",
-            c.stray_points,
-            c.rms_all_px
-        )?;
-    }
     if let (Some(first), Some(last)) = (c.precision_bins.first(), c.precision_bins.last()) {
         if (last.weight / first.weight - 1.0).abs() < 1e-9 {
-            outln!("  every centre weighed alike: centres fitted to more events err no less in this recording")?;
+            outln!("centres weighed alike: centres fitted to more events err no less in this recording")?;
         } else {
             let bins: Vec<String> =
                 c.precision_bins.iter().map(|b| format!("{:.0}+ ×{:.2}", b.from, b.weight)).collect();
             outln!(
-                "  each centre weighed as precise as centres fitted to as many events are here (events: weight): {}",
+                "each centre weighed as precise as centres fitted to as many events are here (events: weight): {}",
                 bins.join(", ")
             )?;
         }
-    }
-    let est = c.intrinsics.to_array();
-    match truth {
-        Some(t) => {
-            let t = t.to_array();
-            outln!("  {:<4} {:>12} {:>10} {:>12} {:>12}", "", "estimate", "± 1σ", "truth", "error")?;
-            for i in 0..9 {
-                let err = est[i] - t[i];
-                let rel = if i < 2 { format!(" ({:+.3} %)", 100.0 * err / t[i]) } else { String::new() };
-                outln!(
-                    "  {:<4} {:>12.5} {:>10.5} {:>12.5} {:>+12.5}{rel}",
-                    PARAMETER_NAMES[i],
-                    est[i],
-                    c.std_dev[i],
-                    t[i],
-                    err
-                )?;
-            }
-        }
-        None => {
-            outln!("  {:<4} {:>12} {:>10}", "", "estimate", "± 1σ")?;
-            for i in 0..9 {
-                outln!("  {:<4} {:>12.5} {:>10.5}", PARAMETER_NAMES[i], est[i], c.std_dev[i])?;
-            }
-        }
-    }
-    let group_s = c.sigma_group_s.unwrap_or(evcal_host::calib::MIN_GROUP_SECONDS);
-    match c.sigma_groups {
-        Some(g) => outln!(
-            "  σ: the larger of each point's own and the scatter of {g} stretches of {group_s:.2} s of the recording, widened ×{:.2} for so few (a longer recording narrows it)",
-            evcal_host::calib::few_groups_factor(g)
-        )?,
-        None => outln!(
-            "  σ: each point's error taken as independent (views in fewer than {} stretches of {group_s:.2} s: too few to see how their errors are shared, so it may be too small; views all through at least {} s of the recording give them)",
-            evcal_host::calib::MIN_GROUPS,
-            evcal_host::calib::MIN_GROUPS as f64 * evcal_host::calib::MIN_GROUP_SECONDS
-        )?,
-    }
-    outln!(
-        "coverage of the sensor by the points used ({:.0} % of cells):\n{}",
-        100.0 * o.coverage.covered,
-        indent(&o.coverage.picture())
-    )?;
-    for w in c.warnings.iter().chain(&o.advice) {
-        outln!("warning: {w}")?;
-    }
-    if let Some(w) = &o.weak_focal {
-        outln!("warning: {w}")?;
     }
     Ok(())
 }

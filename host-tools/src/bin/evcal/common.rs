@@ -28,15 +28,19 @@ use std::{
 /// What a recording cannot say about itself: which stream to read, the unit of its times.
 #[derive(Args, Clone)]
 pub struct ReadArgs {
-    /// The stream to read where the file holds several. ROS bag: a topic of type
-    /// dvs_msgs/EventArray (default: the only one, else /dvs/events). AEDAT4: an event
-    /// stream's name or id (default: the only one, else 'events').
+    /// The stream to read where the file holds several.
+    ///
+    /// ROS bag: a topic of type dvs_msgs/EventArray (default: the only one, else
+    /// /dvs/events). AEDAT4: an event stream's name or id (default: the only one, else
+    /// 'events').
     #[arg(long, value_name = "NAME")]
     pub topic: Option<String>,
-    /// Unit of timestamps: s, ms, us or ns. Text recordings: of every time (default seconds,
-    /// or µs when the times are integers). HDF5 files laid out as x, y, t, p datasets: of
-    /// integer times (default: from the file's attributes, DSEC's t_offset, else from the
-    /// values). A guess is said in a note on standard error, with its reason.
+    /// Unit of timestamps: s, ms, us or ns.
+    ///
+    /// Text recordings: of every time (default seconds, or µs when the times are integers).
+    /// HDF5 files laid out as x, y, t, p datasets: of integer times (default: from the
+    /// file's attributes, DSEC's t_offset, else from the values). A guess is said in a note
+    /// on standard error, with its reason.
     #[arg(long, value_name = "UNIT", value_parser = parse_time_unit)]
     pub time_unit: Option<TimeUnit>,
 }
@@ -67,9 +71,10 @@ impl ReadArgs {
 
 #[derive(Args, Clone)]
 pub struct CoreArgs {
-    /// Sensor size, WxH (e.g. 346x260) or davis346 / dvxplorer / imx636 / genx320. Default:
-    /// from the file (detections say it on every line), else guessed from a recording's
-    /// largest coordinates (a note says so).
+    /// Sensor size: WxH (346x260) or davis346, dvxplorer, imx636, genx320.
+    ///
+    /// Default: from the file (detections say it on every line), else guessed from a
+    /// recording's largest coordinates (a note says so).
     #[arg(long)]
     pub sensor: Option<String>,
     /// Events per window [default: scaled with the sensor, 8000 for 346x260; --help says how]
@@ -99,8 +104,9 @@ pub struct CoreArgs {
     #[arg(long, default_value_t = evcal_core::config::DEFAULT_EPS, value_parser = ranges::eps,
           allow_negative_numbers = true)]
     pub eps: f32,
-    /// DBSCAN minimum points in a neighbourhood (the point included), over the background:
-    /// each window adds the events its pixels' noise puts in a neighbourhood by chance (the
+    /// DBSCAN minimum points in a neighbourhood (the point included), over the background.
+    ///
+    /// Each window adds the events its pixels' noise puts in a neighbourhood by chance (the
     /// lower quartile of its counts over a 32x24 grid of the sensor, plus two standard
     /// deviations), so that a dim room's noise does not join circles; 0 added on a clean
     /// window. 1 to 32000 (the most events a window holds).

@@ -12,7 +12,7 @@ use evcal_host::{
     export::atomic::AtomicFile,
     input::detections::WindowRecord,
     input::link::replay::replay_virtual,
-    pipeline::Setup,
+    pipeline::{Setup, Verdict},
     sim::{Light, SimConfig, Trajectory},
     views::grid::Pattern,
 };
@@ -38,6 +38,9 @@ pub struct DemoArgs {
     /// No progress bars.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Also say how the run got to its result, as `evcal calibrate -v` does.
+    #[arg(long, short)]
+    pub verbose: bool,
 }
 
 pub fn run(a: DemoArgs) -> Result<()> {
@@ -113,11 +116,11 @@ fn demo(a: &DemoArgs) -> Result<()> {
     let setup = Setup::new(pattern, [u32::from(c.width), u32::from(c.height)]);
     let views = find_views(&windows, &setup, a.quiet);
     let outcome = solve(&views, &setup)?;
-    let written = export(&views, &outcome, &a.out, None)?;
-    report(&views, &outcome, &setup, Some(&truth))?;
-    list_written(&written)?;
-    outln!("  {}", a.out.join(DETECTIONS).display())?;
-    crate::calibrate::fail_if_no_calibration(&outcome, &a.out)
+    let verdict = Verdict::of(&outcome);
+    let written = export(&views, &outcome, &verdict, &a.out, None)?;
+    report(&views, &outcome, &setup, Some(&truth), a.verbose)?;
+    list_written(&written, &[a.out.join(DETECTIONS)])?;
+    crate::calibrate::finish(&verdict, &a.out)
 }
 
 fn write_detections(path: &Path, windows: &[WindowRecord]) -> Result<()> {

@@ -80,6 +80,17 @@ enum Command {
     ///   kalibr_camchain.yaml  Kalibr: pinhole + radtan (no k3: solved with k3 = 0 when k3
     ///                         matters, and said so)
     ///   report.png            per-view error, residuals, sensor coverage, detections over time
+    ///
+    /// The last line is the verdict, and the exit status follows it:
+    ///   verdict: good                 (0) fx, fy within 0.1 % (1σ), cx, cy within 1 px,
+    ///                                 points on at least 60 % of the sensor, 10 views or
+    ///                                 more, RMS reprojection error within 0.5 px
+    ///   verdict: usable, but ...      (4) a calibration that misses one of those; up to three
+    ///                                 things to do about it, the most useful first
+    ///   verdict: not a calibration    (3) the views leave fx, fy beyond 5 % or cx, cy beyond
+    ///                                 5 % of the sensor (1σ): the files are named *.failed.*
+    ///                                 and hold no camera matrix a program would load
+    /// Other errors (an input that cannot be read, no grid in any window) exit with 1.
     #[command(
         verbatim_doc_comment,
         after_help = "Examples:\n  evcal calibrate rec.h5 --pattern 4x11 --spacing 0.024\n  \

@@ -159,3 +159,47 @@ fn each_verdict_says_what_it_said_as_a_string() {
         first_clause(&DiscRejection::NoCalibration(few).to_string())
     );
 }
+
+/// The run's verdict from its thresholds: good when every one is met, usable with the
+/// actions for what misses (the most useful first, at most three), not a calibration when a
+/// parameter is loose; each with its exit status.
+#[test]
+fn the_verdict_follows_its_thresholds_and_names_at_most_three_actions() {
+    let mut o = calibrate_views(&synthetic(40, 0.02), &setup()).expect("a calibration");
+    // Synthetic views spread over the sensor, noise of 0.02 px: every threshold met.
+    assert!(o.coverage.covered >= GOOD_COVERAGE, "{}", o.coverage.picture());
+    assert_eq!(Verdict::of(&o), Verdict::Good, "σ {:?}", o.calibration.std_dev);
+    assert_eq!((Verdict::of(&o).exit_code(), Verdict::of(&o).to_string()), (0, "verdict: good".to_string()));
+
+    // Each threshold missed on its own gives one action naming its figure.
+    let k = o.calibration.intrinsics;
+    let good = o.clone();
+    o.calibration.std_dev[0] = 1.5 * GOOD_FOCAL_RELATIVE * k.fx;
+    let v = Verdict::of(&o);
+    assert_eq!(v.exit_code(), EXIT_USABLE);
+    assert!(v.actions().len() == 1 && v.actions()[0].contains("fx ±0.15 %"), "{v}");
+    o = good.clone();
+    o.calibration.std_dev[3] = 1.2 * GOOD_CENTRE_PX;
+    assert!(Verdict::of(&o).actions()[0].contains("cy ±1.2 px"), "{}", Verdict::of(&o));
+    o = good.clone();
+    o.calibration.rms_px = 2.0 * GOOD_RMS_PX;
+    assert!(Verdict::of(&o).actions()[0].contains("1.00 px RMS"), "{}", Verdict::of(&o));
+    o = good.clone();
+    o.coverage.covered = 0.3;
+    assert!(Verdict::of(&o).actions()[0].contains("30 % of it"), "{}", Verdict::of(&o));
+
+    // Everything missed: three actions, the focal length's first.
+    o.calibration.std_dev[0] = 0.01 * k.fx;
+    o.calibration.std_dev[2] = 3.0;
+    o.calibration.rms_px = 1.0;
+    o.calibration.views.truncate(GOOD_VIEWS - 1);
+    let v = Verdict::of(&o);
+    assert_eq!(v.actions().len(), MAX_ACTIONS, "{v}");
+    assert!(v.actions()[0].contains("fx ±1.00 %") && v.to_string().starts_with("verdict: usable, but "), "{v}");
+
+    // A loose parameter: no calibration, whatever else.
+    o.failure = Some(Loose { params: vec![LooseParam { index: 1, by: Looseness::Relative(0.08) }] });
+    let v = Verdict::of(&o);
+    assert_eq!((v.exit_code(), v.grade()), (EXIT_NOT_A_CALIBRATION, "not a calibration"));
+    assert!(v.to_string().contains("fy ±8.0 %") && v.actions().is_empty(), "{v}");
+}

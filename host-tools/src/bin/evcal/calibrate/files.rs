@@ -5,7 +5,7 @@ use crate::common::{check_output, outln};
 use anyhow::{bail, Result};
 use evcal_host::{
     export::{atomic, remove_stale, write_all, Export, Stale, FAILED_FILE_NAMES, FILE_NAMES},
-    pipeline::{Outcome, Views},
+    pipeline::{Outcome, Verdict, Views},
 };
 use std::path::{Path, PathBuf};
 
@@ -57,13 +57,15 @@ fn say_stale(s: &Stale, why: &str, quiet: bool) {
 /// Writes every output into `dir`, and the JSON result to `json` too. Done before anything
 /// is printed, so that a reader closing standard output early (`| head`) cannot leave the
 /// files unwritten or stale from an earlier run.
-pub fn export(views: &Views, o: &Outcome, dir: &Path, json: Option<&Path>) -> Result<Written> {
+pub fn export(views: &Views, o: &Outcome, verdict: &Verdict, dir: &Path, json: Option<&Path>) -> Result<Written> {
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
     let failure = o.failure.as_ref().map(ToString::to_string);
     e.failure = failure.as_deref();
     e.json_copy = json;
+    e.verdict = Some(verdict);
+    e.advice = &o.advice;
     let written = write_all(dir, &e)?;
     let why = if o.failure.is_some() {
         "as this run gives no calibration"
@@ -83,8 +85,9 @@ pub struct Written {
     without_k3: bool,
 }
 
-/// Lists what [`export`] wrote, with its notes.
-pub fn list_written(w: &Written) -> Result<()> {
+/// Lists what [`export`] wrote, with its notes, and `more` files the command wrote beside
+/// them: one line, the folder named once.
+pub fn list_written(w: &Written, more: &[PathBuf]) -> Result<()> {
     if w.without_k3 {
         outln!(
             "note: kalibr_camchain.yaml holds a solve with k3 fixed at 0 (radtan has no k3); the other files hold k3"
@@ -93,9 +96,18 @@ pub fn list_written(w: &Written) -> Result<()> {
     for warning in &w.files.warnings {
         outln!("warning: {warning}")?;
     }
-    outln!("wrote:")?;
-    for p in w.files.paths.iter().chain(&w.json) {
-        outln!("  {}", p.display())?;
+    let all: Vec<&PathBuf> = w.files.paths.iter().chain(more).collect();
+    let dir = all.first().and_then(|p| p.parent()).map(Path::to_path_buf);
+    let in_dir = |p: &PathBuf| dir.as_deref().is_some_and(|d| p.parent() == Some(d));
+    let (inside, outside): (Vec<&PathBuf>, Vec<&PathBuf>) = all.into_iter().partition(|p| in_dir(p));
+    let names: Vec<String> =
+        inside.iter().filter_map(|p| p.file_name()).map(|n| n.to_string_lossy().into_owned()).collect();
+    let mut line = match &dir {
+        Some(d) if !names.is_empty() => format!("wrote in {}: {}", d.display(), names.join(", ")),
+        _ => "wrote:".to_string(),
+    };
+    for p in outside.iter().copied().chain(&w.json) {
+        line += &format!("; {}", p.display());
     }
-    Ok(())
+    outln!("{line}")
 }
