@@ -500,34 +500,45 @@ fn residuals(object: &[[f64; 3]], image: &[[f64; 2]], k: &Intrinsics, pose: &Pos
 /// otherwise give every parameter a σ of almost zero however loosely the views fix it.
 const MIN_POINT_STD_PX: f64 = 1.0 / (evcal_core::wire::fixed::UNITS_PER_PX as f64 * 3.464_101_615_137_754_5);
 
-/// Warnings for parameters the views leave poorly constrained, in one line (none when
-/// none is): a parameter is named when moving it by one standard deviation moves the image of
-/// a sensor corner by more than half a pixel (what the points can tell apart is far finer).
-/// The pipeline calls it again once it has widened `std_dev`, so that the σ it quotes is
-/// the one printed.
-pub fn constraint_warnings(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> Vec<String> {
+/// A parameter whose σ moves the image of a sensor corner by more than this is poorly
+/// constrained, px: what the points can tell apart is far finer.
+pub const CORNER_SHIFT_PX: f64 = 0.5;
+
+/// How far moving each parameter by its `std_dev` moves the image of the sensor's far corner
+/// (the bottom-right pixel), px: 0 for a fixed parameter, NaN where it cannot be told.
+pub fn corner_shifts(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> [f64; 9] {
     // The normalised point that the base camera sees at the sensor's corner.
     let (u, v) = (f64::from(size[0]) - 1.0, f64::from(size[1]) - 1.0);
     let (x, y) = ((u - k.cx) / k.fx, (v - k.cy) / k.fy);
     let base = k.distort(x, y);
-    let mut loose = Vec::new();
-    for (i, name) in PARAMETER_NAMES.iter().enumerate() {
-        if std_dev[i].is_nan() || std_dev[i] <= 0.0 {
-            continue;
+    std::array::from_fn(|i| {
+        if std_dev[i] == 0.0 {
+            return 0.0;
         }
         let mut a = k.to_array();
         a[i] += std_dev[i];
         let moved = Intrinsics::from_array(a).distort(x, y);
-        let shift = (moved[0] - base[0]).hypot(moved[1] - base[1]);
-        if shift.is_nan() || shift > 0.5 {
-            loose.push(format!("{name} ±{:.3e} moves it {shift:.2} px", std_dev[i]));
-        }
-    }
+        (moved[0] - base[0]).hypot(moved[1] - base[1])
+    })
+}
+
+/// Warnings for parameters the views leave poorly constrained ([`CORNER_SHIFT_PX`]), in one
+/// line (none when none is). The pipeline calls it again once it has widened `std_dev`, so
+/// that the σ it quotes is the one printed.
+pub fn constraint_warnings(k: &Intrinsics, std_dev: &[f64; 9], size: [u32; 2]) -> Vec<String> {
+    let shifts = corner_shifts(k, std_dev, size);
+    let loose: Vec<String> = PARAMETER_NAMES
+        .iter()
+        .zip(std_dev)
+        .zip(shifts)
+        .filter(|&((_, sd), shift)| *sd > 0.0 && (shift.is_nan() || shift > CORNER_SHIFT_PX))
+        .map(|((name, sd), shift)| format!("{name} ±{sd:.3e} moves it {shift:.2} px"))
+        .collect();
     if loose.is_empty() {
         return Vec::new();
     }
     vec![format!(
-        "poorly constrained (1σ moves the image of the sensor's corner by more than 0.5 px): {}; add views that fill the sensor's corners and tilt the target more",
+        "poorly constrained (1σ moves the image of the sensor's corner by more than {CORNER_SHIFT_PX} px): {}; add views that fill the sensor's corners and tilt the target more",
         loose.join(", ")
     )]
 }

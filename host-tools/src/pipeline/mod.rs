@@ -24,8 +24,8 @@ mod verdicts;
 mod views;
 
 pub use verdict::{
-    Verdict, EXIT_GOOD, EXIT_NOT_A_CALIBRATION, EXIT_USABLE, GOOD_CENTRE_PX, GOOD_COVERAGE, GOOD_FOCAL_RELATIVE,
-    GOOD_RMS_PX, GOOD_VIEWS, MAX_ACTIONS,
+    Verdict, EXIT_GOOD, EXIT_NOT_A_CALIBRATION, EXIT_USABLE, GOOD_CENTRE_PX, GOOD_CORNER_PX, GOOD_COVERAGE,
+    GOOD_FOCAL_RELATIVE, GOOD_RMS_PX, GOOD_VIEWS, MAX_ACTIONS,
 };
 pub use verdicts::{
     calibrate_with_disc_fallback, disc_fallback_rejects, loose_params, no_calibration, Chosen, DiscFallback,

@@ -21,6 +21,10 @@ pub const GOOD_CENTRE_PX: f64 = 1.0;
 /// Good needs the points on at least this fraction of the sensor's coverage cells
 /// ([`crate::views::select::COVERAGE_CELLS`]); below it the advice says to sweep the sensor.
 pub const GOOD_COVERAGE: f64 = crate::views::select::WELL_COVERED;
+/// Good needs no distortion coefficient whose σ moves the image of the sensor's corner by
+/// more than this, px ([`crate::calib::CORNER_SHIFT_PX`]): beyond it the model is guessed
+/// where the points never were.
+pub const GOOD_CORNER_PX: f64 = crate::calib::CORNER_SHIFT_PX;
 /// Good needs at least this many views solved on.
 pub const GOOD_VIEWS: usize = crate::views::select::FEW_VIEWS;
 /// Good needs the RMS reprojection error within this, px: well-focused event centres fit
@@ -88,6 +92,19 @@ impl Verdict {
             actions.push(format!(
                 "sweep the target over the whole sensor (points on {:.0} % of it)",
                 100.0 * o.coverage.covered
+            ));
+        }
+        // Distortion the views leave loose moves the image where the points never were.
+        let shifts = crate::calib::corner_shifts(k, &c.std_dev, c.image_size);
+        let (worst, name) = shifts
+            .iter()
+            .zip(crate::calib::PARAMETER_NAMES)
+            .skip(4)
+            .map(|(&s, n)| (if s.is_nan() { f64::INFINITY } else { s }, n))
+            .fold((0.0, ""), |a, b| if b.0 > a.0 { b } else { a });
+        if worst > GOOD_CORNER_PX {
+            actions.push(format!(
+                "bring the target into the sensor's corners (1σ of {name} moves a corner {worst:.1} px)"
             ));
         }
         let centre = c.std_dev[2].max(c.std_dev[3]);

@@ -185,6 +185,9 @@ fn the_verdict_follows_its_thresholds_and_names_at_most_three_actions() {
     o.calibration.rms_px = 2.0 * GOOD_RMS_PX;
     assert!(Verdict::of(&o).actions()[0].contains("1.00 px RMS"), "{}", Verdict::of(&o));
     o = good.clone();
+    o.calibration.std_dev[8] = 1.0;
+    assert!(Verdict::of(&o).actions()[0].contains("1σ of k3 moves a corner"), "{}", Verdict::of(&o));
+    o = good.clone();
     o.coverage.covered = 0.3;
     assert!(Verdict::of(&o).actions()[0].contains("30 % of it"), "{}", Verdict::of(&o));
 
