@@ -14,7 +14,8 @@
 //! as `DIR/<name>.jsonl`, so that a rerun skips the detection core. `--diagnose` also solves
 //! the same views on the true centres (projected circle centres, and projected ellipse
 //! centres) and prints how the detected centres err against the truth. `--no-edge-shift` and
-//! `--no-smoothing` switch those steps off, as `evcal calibrate`'s flags of the same names do.
+//! `--no-smoothing` switch those steps off, and `--free-k3` solves k3 whatever the views say,
+//! as `evcal calibrate`'s flags of the same names do.
 //!
 //! For experiments on the detection (they bypass `--detections`' cache):
 //! `--events-per-window N` and `--step-ms MS` cut the windows as `evcal calibrate`'s options
@@ -384,9 +385,10 @@ fn main() {
     };
     let mut flag = |name: &str| args.iter().position(|a| a == name).map(|i| args.remove(i)).is_some();
     let (diagnose, no_edge_shift, no_smoothing) = (flag("--diagnose"), flag("--no-edge-shift"), flag("--no-smoothing"));
+    let free_k3 = flag("--free-k3");
     if args.is_empty() {
         eprintln!(
-            "usage: emulator [--detections DIR] [--truth FILE] [--diagnose] [--no-edge-shift] [--no-smoothing] \
+            "usage: emulator [--detections DIR] [--truth FILE] [--diagnose] [--no-edge-shift] [--no-smoothing] [--free-k3] \
              [--events-per-window N] [--step-ms MS] [--trail-filter-ms T] [--span FROM-TO] RECORDING_DIR..."
         );
         std::process::exit(2);
@@ -412,6 +414,7 @@ fn main() {
                 .expect("a valid pattern");
         let mut setup = Setup::new(pattern, [u32::from(sensor.width), u32::from(sensor.height)]);
         setup.edge_shift = !no_edge_shift;
+        setup.k3_only_if_demanded = !free_k3;
         if no_smoothing {
             setup.smooth = None;
         }

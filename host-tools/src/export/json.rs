@@ -3,7 +3,7 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins verdict verdict_actions`.
+//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins verdict verdict_actions k3_held`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
@@ -104,6 +104,19 @@ pub struct ResultJson {
     /// What to do about a `"usable"` verdict, the most useful first (at most three).
     #[serde(default)]
     pub verdict_actions: Vec<String>,
+    /// k3 was held at 0 because the views do not tell it from 0: what the solve with it free
+    /// said; `null` when k3 was solved (or held by `--fix-k3`).
+    #[serde(default)]
+    pub k3_held: Option<K3HeldJson>,
+}
+
+/// What the solve with k3 free said, when k3 was held at 0 (`k3_held` in the JSON result).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct K3HeldJson {
+    /// k3 with it free.
+    pub free: f64,
+    /// Its σ there.
+    pub std: f64,
 }
 
 /// Reads `std_dev` back: JSON has no infinity, so `serde_json` writes an unbounded σ as
@@ -226,6 +239,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         precision_bins: cal.precision_bins.clone(),
         verdict: None,
         verdict_actions: Vec::new(),
+        k3_held: None,
     })
 }
 

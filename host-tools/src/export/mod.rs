@@ -31,7 +31,7 @@ mod report;
 mod stale;
 mod yaml;
 
-pub use json::{result_json, PerViewJson, RejectedJson, ResultJson};
+pub use json::{result_json, K3HeldJson, PerViewJson, RejectedJson, ResultJson};
 pub use report::{render_report, write_report, Notes, NOTE_LINES, REPORT_SIZE};
 pub use stale::{remove_stale, written_by_evcal, Stale, YAML_MARK};
 pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
@@ -136,6 +136,9 @@ pub struct Export<'a> {
     /// What the run advises beside the solver's warnings (coverage, tilt, views), drawn on
     /// the report with them.
     pub advice: &'a [String],
+    /// k3 held at 0 because the views do not demand it: what the solve with it free said
+    /// (value, σ), for the JSON result's `k3_held`.
+    pub k3_held: Option<(f64, f64)>,
     /// Another file to write the JSON result to (`evcal calibrate --json`), with the others:
     /// all are in place or none is replaced. Nothing more when it is the folder's own
     /// `calibration.json`; nothing at all for a failed run (see `failure`).
@@ -169,6 +172,7 @@ impl<'a> Export<'a> {
             failure: None,
             verdict: None,
             advice: &[],
+            k3_held: None,
             json_copy: None,
         }
     }
@@ -233,6 +237,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
         json.verdict = Some(v.grade().to_owned());
         json.verdict_actions = v.actions().to_vec();
     }
+    json.k3_held = export.k3_held.map(|(free, std)| json::K3HeldJson { free, std });
     json.warnings.extend(warnings.iter().cloned());
     let json = serde_json::to_string_pretty(&json)? + "\n";
 

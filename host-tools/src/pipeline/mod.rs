@@ -64,6 +64,36 @@ pub struct Setup {
     /// outline centre lies ([`calib::Options::circle_radius`]); `calib.circle_radius`, when
     /// set, wins over both.
     pub circle_radius: Option<f64>,
+    /// Hold k3 at 0 unless the views demand it ([`K3_DEMANDED_SIGMAS`]); `false` solves it
+    /// whatever they say (`calib.fix_k3` holds it at 0 whatever they say).
+    pub k3_only_if_demanded: bool,
+}
+
+/// k3 is solved for only when the first solve puts it at least this many of its σ from 0
+/// (a Wald test with the grouped σ, which counts the errors views of one stretch of the
+/// recording share): below it the views cannot tell k3 from 0 over the region they cover,
+/// and a free k3 only bends the model where they never were (on an independent emulator's
+/// cone, 14.9 px off at a corner with k3 free, 1.6 px with it held). ROS's calibrator and
+/// Kalibr's radtan hold it at 0 by default; every file then holds the same model.
+pub const K3_DEMANDED_SIGMAS: f64 = 3.0;
+
+/// k3 held at 0 because the views do not demand it: what the free solve said.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct K3Held {
+    /// k3 as the solve with it free put it.
+    pub free: f64,
+    /// Its σ there.
+    pub std: f64,
+}
+
+impl fmt::Display for K3Held {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "k3 held at 0: the views do not tell it from 0 (free, it came to {:.4} ± {:.4}, within {K3_DEMANDED_SIGMAS} σ), so every file holds k1, k2, p1, p2 alone (--free-k3 to solve it anyway)",
+            self.free, self.std
+        )
+    }
 }
 
 impl Setup {
@@ -80,6 +110,7 @@ impl Setup {
             edge_margin_px: 1.0,
             edge_shift: true,
             circle_radius: None,
+            k3_only_if_demanded: true,
         }
     }
 }
@@ -103,6 +134,9 @@ pub struct Outcome {
     /// The same views solved with k3 fixed at 0, for exports whose model has no k3
     /// (Kalibr's radtan), when k3 is not negligible; `None` otherwise.
     pub without_k3: Option<Calibration>,
+    /// k3 was held at 0 because the views do not demand it ([`K3_DEMANDED_SIGMAS`]), and what
+    /// the solve with it free said; `None` when k3 was solved (or fixed by the caller).
+    pub k3_held: Option<K3Held>,
     /// Where on the sensor the chosen views' points fell.
     pub coverage: Coverage,
     /// What the user should know about the views, and what motion would help.
@@ -197,6 +231,18 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         ..setup.calib.clone()
     };
     let mut calibration = calib::calibrate(&used, setup.image_size, &grouped).map_err(PipelineError::Calib)?;
+    // k3 only where the views demand it: every later solve holds it at 0 otherwise.
+    let mut k3_held = None;
+    if setup.k3_only_if_demanded && !grouped.fix_k3 {
+        let (free, std) = (calibration.intrinsics.k3, calibration.std_dev[8]);
+        if std.is_nan() || free.abs() < K3_DEMANDED_SIGMAS * std {
+            let held = calib::Options { fix_k3: true, ..grouped.clone() };
+            if let Ok(c) = calib::calibrate(&used, setup.image_size, &held) {
+                (calibration, grouped) = (c, held);
+                k3_held = Some(K3Held { free, std });
+            }
+        }
+    }
     // Further moves the views measure (see `edge_shift`'s note): on slanted outlines the
     // shift leans across the motion, and a slow pixel's lag bends with the speed. Solved once
     // more to estimate them together, then again on the centres they move, where they count
@@ -268,7 +314,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
     // The warnings quote the σ printed, widened above.
     calibration.warnings = calib::constraint_warnings(&calibration.intrinsics, &calibration.std_dev, setup.image_size);
     let without_k3 =
-        if !setup.calib.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
+        if !grouped.fix_k3 && k3_displacement_px(&calibration.intrinsics, setup.image_size) > K3_NEGLIGIBLE_PX {
             let opts = calib::Options { fix_k3: true, ..grouped.clone() };
             calib::calibrate(&used, setup.image_size, &opts).ok()
         } else {
@@ -288,6 +334,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         edge_shift,
         calibration,
         without_k3,
+        k3_held,
         coverage,
         advice,
         weak_focal,

@@ -219,3 +219,33 @@ fn no_grid_is_an_error_that_says_why() {
     let none = calibrate_views(&Views::default(), &setup).unwrap_err();
     assert!(none.to_string().contains("no detection windows"), "{none}");
 }
+
+/// k3 is held at 0 where the views cannot tell it from 0, and said; solved where they can
+/// (a lens with a strong k3 seen to the corners); solved whatever they say when asked.
+#[test]
+fn k3_is_solved_only_where_the_views_demand_it() {
+    let pattern = Pattern::new(4, 11, 0.024).unwrap();
+    let views_of = |truth: &calib::Intrinsics, n: usize, noise: f64| Views {
+        views: calib::synthetic_views(truth, n, noise, 5),
+        origins: (0..n).map(|k| ViewOrigin { window_seq: k as u64, t_s: 0.033 * k as f64 }).collect(),
+        partial: vec![false; n],
+        ..Views::default()
+    };
+    let setup = Setup::new(pattern, [346, 260]);
+    // No k3 in the lens, noisy centres: held, and every export the same model.
+    let o = calibrate_views(&views_of(&lens(), 30, 0.1), &setup).expect("a solve");
+    let held = o.k3_held.expect("k3 held at 0");
+    assert!(held.free.abs() < K3_DEMANDED_SIGMAS * held.std, "{held:?}");
+    assert_eq!((o.calibration.intrinsics.k3, o.calibration.std_dev[8]), (0.0, 0.0));
+    assert!(o.without_k3.is_none());
+    assert!(held.to_string().starts_with("k3 held at 0") && held.to_string().contains("--free-k3"), "{held}");
+    // Asked to solve it: solved.
+    let free = Setup { k3_only_if_demanded: false, ..setup.clone() };
+    let o = calibrate_views(&views_of(&lens(), 30, 0.1), &free).expect("a solve");
+    assert!(o.k3_held.is_none() && o.calibration.intrinsics.k3 != 0.0);
+    // A strong k3, precise centres: the views demand it.
+    let strong = calib::Intrinsics { k3: 0.3, ..lens() };
+    let o = calibrate_views(&views_of(&strong, 40, 0.01), &setup).expect("a solve");
+    assert!(o.k3_held.is_none(), "{:?}", o.k3_held);
+    assert!((o.calibration.intrinsics.k3 - 0.3).abs() < 0.05, "{:?}", o.calibration.intrinsics);
+}

@@ -98,9 +98,17 @@ pub struct TargetArgs {
 /// What the solve may change.
 #[derive(Args, Clone)]
 pub struct SolveArgs {
-    /// Keep k3 at 0 (a lens with little distortion; Kalibr's radtan has no k3).
+    /// Keep k3 at 0 whatever the views say.
+    ///
+    /// By default k3 is held at 0 unless the views put it at least 3 σ from 0 (they rarely
+    /// do: a free k3 mostly bends the model where the points never were), and the run says
+    /// which; Kalibr's radtan and ROS's calibrator have no k3 either.
     #[arg(long)]
     pub fix_k3: bool,
+    /// Solve k3 whatever the views say (OpenCV's five coefficients), even where they cannot
+    /// tell it from 0.
+    #[arg(long, conflicts_with = "fix_k3")]
+    pub free_k3: bool,
     /// Keep p1 = p2 = 0.
     #[arg(long)]
     pub zero_tangential: bool,
@@ -166,6 +174,7 @@ impl SolveArgs {
     pub fn setup(&self, pattern: Pattern, size: [u32; 2]) -> Result<Setup> {
         let mut s = Setup::new(pattern, size);
         s.calib.fix_k3 = self.fix_k3;
+        s.k3_only_if_demanded = !self.free_k3;
         s.calib.zero_tangential = self.zero_tangential;
         s.calib.fix_aspect_ratio = self.fix_aspect_ratio;
         s.calib.robust = !self.no_robust;
@@ -518,6 +527,9 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
     )?;
     if verbose {
         outln!("{}", indent(&o.coverage.picture()))?;
+    }
+    if let Some(h) = &o.k3_held {
+        outln!("note: {h}")?;
     }
     for w in c.warnings.iter().chain(&o.advice) {
         outln!("warning: {w}")?;

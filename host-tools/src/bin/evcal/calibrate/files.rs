@@ -66,6 +66,7 @@ pub fn export(views: &Views, o: &Outcome, verdict: &Verdict, dir: &Path, json: O
     e.json_copy = json;
     e.verdict = Some(verdict);
     e.advice = &o.advice;
+    e.k3_held = o.k3_held.map(|h| (h.free, h.std));
     let written = write_all(dir, &e)?;
     let why = if o.failure.is_some() {
         "as this run gives no calibration"
