@@ -248,9 +248,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
             let (a, b) = (alt.intrinsics.to_array(), calibration.intrinsics.to_array());
             let change: [f64; 9] = std::array::from_fn(|i| a[i] - b[i]);
             if change.iter().all(|c| c.is_finite()) {
-                for (sd, c) in calibration.std_dev.iter_mut().zip(change) {
-                    *sd = sd.hypot(c);
-                }
+                calibration.widen(change);
                 s.by_thickness = Some(edge_shift::ByThickness { px, change });
             }
         }

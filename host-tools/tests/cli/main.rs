@@ -11,5 +11,6 @@ mod formats;
 mod golden_detect;
 mod hostile_input;
 mod info_cli;
+mod projection_sigma;
 mod read_options;
 mod target;

@@ -594,6 +594,9 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
         100.0 * o.coverage.covered,
         indent(&o.coverage.picture())
     )?;
+    if let Some(s) = evcal_host::calib::ProjectionSigma::of(c, &o.used, evcal_host::calib::PROJECTION_SIGMA_STEP_PX) {
+        outln!("{}", s.summary())?;
+    }
     for w in c.warnings.iter().chain(&o.advice) {
         outln!("warning: {w}")?;
     }
