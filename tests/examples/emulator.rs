@@ -39,6 +39,9 @@ use nalgebra::{Rotation3, Vector3};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
+#[path = "emulator/mapping.rs"]
+mod mapping;
+
 #[derive(Deserialize)]
 struct Truth {
     name: String,
@@ -393,6 +396,7 @@ fn main() {
     }
     println!("| recording | fx error | fy error | cx error | cy error | fx, fy, cx, cy error / σ | RMS | views |");
     println!("|---|---|---|---|---|---|---|---|");
+    let mut mappings = Vec::new();
     for dir in args.iter().map(PathBuf::from) {
         let truth_path = truth_file.clone().unwrap_or_else(|| dir.join("truth.json"));
         let mut truth: Truth =
@@ -440,6 +444,7 @@ fn main() {
         if out.failure.is_some() {
             name += " (no calibration)";
         }
+        mappings.push(mapping::row(&name, &mapping::mapping(&k, c, &out.used)));
         let e = errors(&c.intrinsics, &k);
         let sd = [100.0 * c.std_dev[0] / k.fx, 100.0 * c.std_dev[1] / k.fy, c.std_dev[2], c.std_dev[3]];
         let sig: Vec<String> = (0..4).map(|i| format!("{:+.1}", e[i] / sd[i])).collect();
@@ -467,6 +472,10 @@ fn main() {
             }
             diagnose_run(&truth, &k, &windows, &out, &setup);
         }
+    }
+    println!("\n{}", mapping::header());
+    for r in &mappings {
+        println!("{r}");
     }
 }
 

@@ -31,29 +31,63 @@ pub const SIGMA_PERCENTILE: f64 = 0.95;
 /// handful wherever the model is one-to-one.
 const UNPROJECT_STEPS: usize = 50;
 
+/// Points from the axis out to [`unproject`]'s ray where the model must be one-to-one: the
+/// distortion's terms are at most r⁶, so its Jacobian changes sign at most a few times
+/// along the way and 32 points see any fold wider than a thirtieth of the radius.
+const FOLD_CHECKS: usize = 32;
+
 /// How close [`unproject`]'s ray must project to its pixel, px.
 const UNPROJECT_TOLERANCE_PX: f64 = 1e-7;
 
 /// The normalised image point `(x/z, y/z)` whose projection through `k` is `pixel`: the ray
-/// through that pixel. `None` where no ray projects there with the model one-to-one around
-/// it (beyond where the distortion polynomial folds back, as a large k3 makes it do in a
-/// sensor's corner): there the model gives no camera to be uncertain about.
+/// through that pixel. `None` where no ray projects there with the model one-to-one from the
+/// axis out to it (beyond where the distortion polynomial folds back, as a large k3 makes it
+/// do in a sensor's corner): there the model gives no camera to be uncertain about.
 pub fn unproject(k: &Intrinsics, pixel: [f64; 2]) -> Option<[f64; 2]> {
     let origin = Pose { rotation: Rotation3::identity(), translation: Vector3::zeros() };
-    let mut xy = [(pixel[0] - k.cx) / k.fx, (pixel[1] - k.cy) / k.fy];
-    for _ in 0..UNPROJECT_STEPS {
+    // The projection, its miss (px) and its derivative by (x, y) (at depth 1 the derivative
+    // by the translation).
+    let at = |xy: [f64; 2]| {
         let p = model::project(k, &origin, &[xy[0], xy[1], 1.0])?;
         let r = [p.pixel[0] - pixel[0], p.pixel[1] - pixel[1]];
-        // At depth 1 the derivative by the translation is that by (x, y).
-        let [[a, b], [c, d]] = [[p.d_pose[0][3], p.d_pose[0][4]], [p.d_pose[1][3], p.d_pose[1][4]]];
+        let j = [[p.d_pose[0][3], p.d_pose[0][4]], [p.d_pose[1][3], p.d_pose[1][4]]];
+        r.iter().chain(j.iter().flatten()).all(|x| x.is_finite()).then_some((r, r[0].hypot(r[1]), j))
+    };
+    let mut xy = [(pixel[0] - k.cx) / k.fx, (pixel[1] - k.cy) / k.fy];
+    let (mut r, mut miss, mut j) = at(xy)?;
+    for _ in 0..UNPROJECT_STEPS {
+        let [[a, b], [c, d]] = j;
         let det = a * d - b * c;
-        if !(det > 0.0 && det.is_finite()) {
+        if miss < UNPROJECT_TOLERANCE_PX {
+            // The ray counts where the model is one-to-one all the way out to it from the
+            // axis: beyond a fold the polynomial brings far rays back, mirrored (k1 < 0
+            // alone: past r² = 1/|k1|), to pixels a ray nearer the axis would be seen at.
+            let unfolded = (1..=FOLD_CHECKS).all(|s| {
+                let t = s as f64 / FOLD_CHECKS as f64;
+                at([t * xy[0], t * xy[1]]).is_some_and(|(_, _, [[a, b], [c, d]])| a * d - b * c > 0.0)
+            });
+            return (det > 0.0 && unfolded).then_some(xy);
+        }
+        if det == 0.0 {
             return None;
         }
-        if r[0].hypot(r[1]) < UNPROJECT_TOLERANCE_PX {
-            return Some(xy);
+        let step = [(d * r[0] - b * r[1]) / det, (a * r[1] - c * r[0]) / det];
+        // Newton's step, halved until it misses by less: a step across a fold of the model
+        // would otherwise throw the ray far off.
+        let mut scale = 1.0;
+        loop {
+            let next = [xy[0] - scale * step[0], xy[1] - scale * step[1]];
+            match at(next) {
+                Some(n) if n.1 < miss => {
+                    xy = next;
+                    (r, miss, j) = n;
+                    break;
+                }
+                _ if scale > 1e-6 => scale *= 0.5,
+                // No step misses by less: the pixel lies beyond a fold, where no ray is seen.
+                _ => return None,
+            }
         }
-        xy = [xy[0] - (d * r[0] - b * r[1]) / det, xy[1] - (a * r[1] - c * r[0]) / det];
     }
     None
 }
@@ -235,24 +269,33 @@ impl ProjectionSigma {
     /// One line for the console: the figures over the covered region, then over the sensor.
     pub fn summary(&self) -> String {
         let covered = match &self.within_points {
-            Some(f) => format!("covered p95 {} px, worst {} px", px(f.p95_px), px(f.worst_px)),
+            Some(f) => format!("covered p95 {}, worst {}", px(f.p95_px), px(f.worst_px)),
             None => "no part of the sensor covered by a board".into(),
         };
+        let nodes = self.values.iter().flatten();
+        let unbounded = nodes.clone().filter(|v| !v.is_finite()).count();
+        let folds = match unbounded {
+            0 => String::new(),
+            n => format!(
+                "; no ray at {:.0} % of the sensor: the distortion folds back short of it",
+                (100.0 * n as f64 / nodes.count() as f64).max(1.0)
+            ),
+        };
         format!(
-            "projection σ (a distant point, 1σ): {covered}; whole sensor p95 {} px, worst {} px (extrapolated beyond the boards)",
+            "projection σ (a distant point, 1σ): {covered}; whole sensor p95 {}, worst {} (extrapolated beyond the boards){folds}",
             px(self.sensor.p95_px),
             px(self.sensor.worst_px)
         )
     }
 }
 
-/// A σ in pixels for people: two significant digits down to a thousandth.
+/// A σ in pixels for people, with its unit: two significant digits down to a thousandth.
 fn px(x: f64) -> String {
     match x {
         x if !x.is_finite() => "unbounded".into(),
-        x if x < 0.1 => format!("{x:.3}"),
-        x if x < 10.0 => format!("{x:.2}"),
-        x => format!("{x:.0}"),
+        x if x < 0.1 => format!("{x:.3} px"),
+        x if x < 10.0 => format!("{x:.2} px"),
+        x => format!("{x:.0} px"),
     }
 }
 

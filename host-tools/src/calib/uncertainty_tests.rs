@@ -93,6 +93,15 @@ fn the_covered_region_is_the_boards_outlines_and_the_figures_their_nodes() {
     assert!(ProjectionSigma::with(&k, &c, [346, 260], &covered, 0).is_none());
     let line = s.summary();
     assert!(line.contains("covered p95 0.20 px, worst 0.20 px") && line.contains("whole sensor p95 0.20 px"), "{line}");
+    assert!(!line.contains("no ray"), "{line}");
+    // A model that folds back within the sensor (the image radius peaks at 143 px): no ray,
+    // an unbounded σ, at the corners, and the line says so.
+    let fold = Intrinsics { k1: -0.9, k2: 0.0, p1: 0.0, p2: 0.0, ..k };
+    let s = ProjectionSigma::with(&fold, &c, [346, 260], &covered, 8).expect("a grid");
+    assert!(s.values[0][0].is_infinite() && (s.values[16][21] - 0.2).abs() < 1e-9);
+    assert!(s.sensor.worst_px.is_infinite() && s.within_points.is_some_and(|f| f.worst_px.is_finite()));
+    let line = s.summary();
+    assert!(line.contains("worst unbounded (") && line.contains("no ray at"), "{line}");
 }
 
 /// The band the spread of the re-solves must fall in, as a multiple of the predicted σ.

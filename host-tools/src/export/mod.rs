@@ -26,6 +26,7 @@
 
 pub mod atomic;
 pub mod board;
+mod heatmap;
 mod json;
 mod report;
 mod stale;
