@@ -29,6 +29,10 @@ pub struct Mapping {
     pub covered_within: f64,
     /// Covered nodes, of GRID².
     pub covered: usize,
+    /// What k3's σ alone moves a node by, px (1σ, [`projection_sigma_at`] with k3's variance
+    /// only): the most over the covered nodes, and over the sensor's (issue 44, item 2).
+    pub k3_covered_px: f64,
+    pub k3_sensor_px: f64,
     /// Nodes where the estimated camera sees no ray (its model folds short of them), whose
     /// σ is unbounded: left out of the σ's mean and max and of the shares within 3σ.
     pub unbounded: usize,
@@ -56,6 +60,16 @@ pub fn mapping(truth: &Intrinsics, cal: &Calibration, used: &[View]) -> Mapping 
     let unbounded = all.iter().filter(|n| !n.1.is_finite()).count();
     let nodes: Vec<(f64, f64, bool)> = all.iter().copied().filter(|n| n.1.is_finite()).collect();
     let inside = || nodes.iter().filter(|n| n.2);
+    let mut k3_only = [[0.0; 9]; 9];
+    k3_only[8][8] = cal.covariance[8][8];
+    let k3 = |covered_only: bool| {
+        (0..GRID)
+            .flat_map(|j| (0..GRID).map(move |i| [w * i as f64 / (GRID - 1) as f64, h * j as f64 / (GRID - 1) as f64]))
+            .filter(|&q| !covered_only || covered.contains(q))
+            .map(|q| projection_sigma_at(&cal.intrinsics, &k3_only, q))
+            .filter(|s| s.is_finite())
+            .fold(0.0, f64::max)
+    };
     let share = |n: &mut dyn Iterator<Item = &(f64, f64, bool)>| {
         let (ok, all) = n.fold((0, 0), |(ok, all), (e, s, _)| (ok + usize::from(*e <= COVERAGE_SIGMAS * s), all + 1));
         ok as f64 / all as f64
@@ -70,19 +84,21 @@ pub fn mapping(truth: &Intrinsics, cal: &Calibration, used: &[View]) -> Mapping 
         within: share(&mut nodes.iter()),
         covered_within: share(&mut inside()),
         covered: inside().count(),
+        k3_covered_px: k3(true),
+        k3_sensor_px: k3(false),
         unbounded,
     }
 }
 
 /// The table's header.
 pub fn header() -> String {
-    "| recording | mapping error mean / max over the sensor | mean over the covered region | predicted σ mean / max over the sensor's other nodes | σ mean, covered | error ≤ 3σ: sensor, covered | covered nodes | nodes of unbounded σ (no ray) |\n|---|---|---|---|---|---|---|---|".into()
+    "| recording | mapping error mean / max over the sensor | mean over the covered region | predicted σ mean / max over the sensor's other nodes | σ mean, covered | error ≤ 3σ: sensor, covered | covered nodes | nodes of unbounded σ (no ray) | k3's 1σ alone, most: covered / sensor |\n|---|---|---|---|---|---|---|---|---|".into()
 }
 
 /// `m`'s row, named `name`.
 pub fn row(name: &str, m: &Mapping) -> String {
     format!(
-        "| {name} | {:.2} / {:.1} px | {:.3} px | {:.2} / {:.1} px | {:.3} px | {:.0} %, {:.0} % | {} of {} | {} |",
+        "| {name} | {:.2} / {:.1} px | {:.3} px | {:.2} / {:.1} px | {:.3} px | {:.0} %, {:.0} % | {} of {} | {} | {:.3} / {:.1} px |",
         m.mean_px,
         m.max_px,
         m.covered_mean_px,
@@ -93,6 +109,8 @@ pub fn row(name: &str, m: &Mapping) -> String {
         100.0 * m.covered_within,
         m.covered,
         GRID * GRID,
-        m.unbounded
+        m.unbounded,
+        m.k3_covered_px,
+        m.k3_sensor_px
     )
 }
