@@ -89,3 +89,44 @@ pub(super) fn grouped_covariance(
     meat /= used as f64;
     Some((inv * meat * inv, fewest))
 }
+
+/// The nine parameters' covariance ([`Calibration::covariance`]): `std_dev` on the diagonal,
+/// the correlations of `source` (the covariance, or any multiple of it, of the `free`
+/// parameters, in their order) off it. With a fixed aspect ratio fy follows fx, and is
+/// correlated with it fully. A parameter with an unbounded σ keeps its infinite variance and
+/// no correlation, so that what it moves stays unbounded rather than NaN.
+pub(super) fn parameter_covariance(
+    std_dev: &[f64; 9],
+    free: &[usize],
+    aspect: Option<f64>,
+    source: Option<&nalgebra::DMatrix<f64>>,
+) -> [[f64; 9]; 9] {
+    let slot = |i: usize| {
+        let of = |p: usize| free.iter().position(|&f| f == p);
+        of(i).or_else(|| if i == 1 && aspect.is_some() { of(0) } else { None })
+    };
+    let correlation = |a: usize, b: usize| {
+        source.map_or(0.0, |m| {
+            let scale = (m[(a, a)] * m[(b, b)]).sqrt();
+            if scale > 0.0 && scale.is_finite() {
+                (0.5 * (m[(a, b)] + m[(b, a)]) / scale).clamp(-1.0, 1.0)
+            } else {
+                0.0
+            }
+        })
+    };
+    let mut cov = [[0.0; 9]; 9];
+    for i in 0..9 {
+        for j in 0..=i {
+            let (Some(a), Some(b)) = (slot(i), slot(j)) else { continue };
+            let (si, sj) = (std_dev[i], std_dev[j]);
+            if i == j {
+                cov[i][i] = si * si;
+            } else if si.is_finite() && sj.is_finite() {
+                cov[i][j] = correlation(a, b) * si * sj;
+                cov[j][i] = cov[i][j];
+            }
+        }
+    }
+    cov
+}

@@ -34,6 +34,7 @@ mod solve;
 mod stats;
 #[cfg(test)]
 mod tests;
+mod uncertainty;
 
 pub use groups::{
     few_groups_factor, group_seconds, groups_of, COVERAGE_SIGMAS, GROUPS_WANTED, GROUP_PLACEMENTS, GROUP_SECONDS,
@@ -45,9 +46,12 @@ pub(crate) use problem::board_key;
 pub use problem::{Options, View};
 pub use rectify::optimal_new_camera_matrix;
 pub use result::{CalibError, Calibration, MoveEstimate, PrecisionBin, Rejection, ViewResult};
+pub use uncertainty::{
+    projection_sigma_at, unproject, Covered, ProjectionSigma, SigmaFigures, PROJECTION_SIGMA_STEP_PX, SIGMA_PERCENTILE,
+};
 
 use crate::stats::{median, median_mad};
-use covariance::{grouped_covariance, view_groups};
+use covariance::{grouped_covariance, parameter_covariance, view_groups};
 use stats::{precision_weights, rms};
 
 use nalgebra::{Rotation3, Vector3};
@@ -403,6 +407,8 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         }
     }
     let mut estimates: Vec<Option<MoveEstimate>> = vec![None; opts.moves.len()];
+    // The covariance whose correlations the parameters' covariance takes.
+    let mut correlated = None;
     if let Some(inv) = hessian.try_inverse() {
         let move_scores: Vec<&[f64]> = moves.as_ref().map_or(Vec::new(), |t| t.scores.iter().map(|s| &s[..]).collect());
         let grouped = view_groups(opts, views.len(), &kept).and_then(|(groups, group_s)| {
@@ -411,6 +417,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         });
         sigma_groups = grouped.as_ref().map(|g| g.1);
         let grouped = grouped.map(|g| g.0);
+        correlated = Some(grouped.as_ref().unwrap_or(&inv).view((0, 0), (n_free, n_free)).clone_owned());
         let sd = |c: usize| {
             let var = inv[(c, c)];
             let points = if var > 0.0 && var.is_finite() { (sigma2 * var).sqrt() } else { f64::INFINITY };
@@ -443,6 +450,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         std_dev_points[1] = a * std_dev_points[0];
         std_dev[1] = a * std_dev[0];
     }
+    let covariance = parameter_covariance(&std_dev, &sol.free, free.aspect, correlated.as_ref());
     let warnings = constraint_warnings(&k, &std_dev, image_size);
     Ok(Calibration {
         intrinsics: k,
@@ -453,6 +461,7 @@ pub fn calibrate(views: &[View], image_size: [u32; 2], opts: &Options) -> Result
         median_view_px,
         std_dev,
         std_dev_points,
+        covariance,
         views: view_results,
         rejected,
         stray_points,

@@ -57,6 +57,14 @@ pub struct Calibration {
     /// Centre errors are not independent: a circle's error persists over the windows of a
     /// slow motion and is shared by its neighbours, so these can be several times too small.
     pub std_dev_points: [f64; 9],
+    /// The parameters' covariance, in the order of [`PARAMETER_NAMES`] (rows and columns of
+    /// a fixed parameter 0): its diagonal is the square of `std_dev`, its correlations those
+    /// of the figure `std_dev` came from (the grouped one when the views were grouped, else
+    /// each point's own). Where `std_dev` is the larger of two figures the correlations are
+    /// the grouped figure's scaled to it: the covariance stays one the σ printed agree with,
+    /// which [`ProjectionSigma`](super::ProjectionSigma) carries into pixels. An unbounded σ
+    /// is an infinite diagonal entry with no correlation.
+    pub covariance: [[f64; 9]; 9],
     /// Every view used, with its error and pose.
     pub views: Vec<ViewResult>,
     /// Views set aside, with the reason.
@@ -105,6 +113,25 @@ pub struct PrecisionBin {
 }
 
 impl Calibration {
+    /// Widens the parameters' uncertainty by a systematic `change` that the views cannot
+    /// tell from the answer (another model's solve minus this one's): each σ becomes
+    /// `hypot(σ, change)` and the covariance gains `change·changeᵀ`, so that the pixels'
+    /// uncertainty ([`ProjectionSigma`](super::ProjectionSigma)) counts it as the σ do, along the
+    /// direction it moves the parameters together. A non-finite `change` changes nothing.
+    pub fn widen(&mut self, change: [f64; 9]) {
+        if !change.iter().all(|c| c.is_finite()) {
+            return;
+        }
+        for (sd, c) in self.std_dev.iter_mut().zip(change) {
+            *sd = sd.hypot(c);
+        }
+        for (i, row) in self.covariance.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v += change[i] * change[j];
+            }
+        }
+    }
+
     /// Each point's reprojection residual, modelled minus detected (px), in one used view:
     /// `view` is the view the solve was given as `result.view`. The model is where the
     /// view's pose and the intrinsics put each circle's outline centre (or the board point

@@ -3,11 +3,11 @@
 //! Top-level keys, in this order, whose names do not change:
 //! `fx fy cx cy k1 k2 p1 p2 k3 rms_px views_used windows detections per_view`; after them,
 //! keys that may grow: `image_width image_height mean_view_px median_view_px std_dev
-//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins verdict verdict_actions k3_held`.
+//! sigma_groups sigma_group_s rejected stray_points rms_all_px warnings iterations converged edge_shift circle_radius_m calibration_failed precision_bins verdict verdict_actions k3_held projection_sigma_px`.
 
 use super::RunCounts;
 use super::{ExportError, Result};
-use crate::calib::{Calibration, Intrinsics, PrecisionBin};
+use crate::calib::{Calibration, Intrinsics, PrecisionBin, ProjectionSigma};
 use crate::views::ViewOrigin;
 use serde::{Deserialize, Serialize};
 
@@ -108,6 +108,10 @@ pub struct ResultJson {
     /// said; `null` when k3 was solved (or held by `--fix-k3`).
     #[serde(default)]
     pub k3_held: Option<K3HeldJson>,
+    /// One standard deviation of where a distant point is seen, px, over the sensor
+    /// (`calib::ProjectionSigma`); `null` when it was not computed.
+    #[serde(default)]
+    pub projection_sigma_px: Option<ProjectionSigmaJson>,
 }
 
 /// What the solve with k3 free said, when k3 was held at 0 (`k3_held` in the JSON result).
@@ -117,6 +121,49 @@ pub struct K3HeldJson {
     pub free: f64,
     /// Its σ there.
     pub std: f64,
+}
+
+/// The projection σ in the JSON result: a grid over the sensor, the region the boards
+/// covered, and the figures over both. `null` for a σ the views leave unbounded (JSON has
+/// no infinity), or for figures over no node.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ProjectionSigmaJson {
+    /// Grid step, px: `values[j][i]` is the σ at pixel (i·step_px, j·step_px).
+    pub step_px: u32,
+    /// Nodes per row.
+    pub columns: usize,
+    /// Rows of nodes.
+    pub rows: usize,
+    /// σ at each node, px, row by row from the top.
+    pub values: Vec<Vec<Option<f64>>>,
+    /// Whether each node lies within the outline of a board seen in a view used (`values`'
+    /// layout); elsewhere the model is extrapolated.
+    pub covered: Vec<Vec<bool>>,
+    /// The largest σ over the sensor, px.
+    pub sensor_worst_px: Option<f64>,
+    /// The σ 95 % of the sensor's nodes are at or below, px.
+    pub sensor_p95_px: Option<f64>,
+    /// The largest σ over the covered nodes, px.
+    pub covered_worst_px: Option<f64>,
+    /// The σ 95 % of the covered nodes are at or below, px.
+    pub covered_p95_px: Option<f64>,
+}
+
+impl From<&ProjectionSigma> for ProjectionSigmaJson {
+    fn from(s: &ProjectionSigma) -> Self {
+        let finite = |x: f64| x.is_finite().then_some(x);
+        Self {
+            step_px: s.step_px,
+            columns: s.columns,
+            rows: s.rows,
+            values: s.values.iter().map(|r| r.iter().map(|&v| finite(v)).collect()).collect(),
+            covered: s.covered.clone(),
+            sensor_worst_px: finite(s.sensor.worst_px),
+            sensor_p95_px: finite(s.sensor.p95_px),
+            covered_worst_px: s.within_points.and_then(|f| finite(f.worst_px)),
+            covered_p95_px: s.within_points.and_then(|f| finite(f.p95_px)),
+        }
+    }
 }
 
 /// Reads `std_dev` back: JSON has no infinity, so `serde_json` writes an unbounded σ as
@@ -240,6 +287,7 @@ pub fn result_json(cal: &Calibration, origins: &[ViewOrigin], counts: RunCounts)
         verdict: None,
         verdict_actions: Vec::new(),
         k3_held: None,
+        projection_sigma_px: None,
     })
 }
 

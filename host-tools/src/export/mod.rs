@@ -26,17 +26,18 @@
 
 pub mod atomic;
 pub mod board;
+mod heatmap;
 mod json;
 mod report;
 mod stale;
 mod yaml;
 
-pub use json::{result_json, K3HeldJson, PerViewJson, RejectedJson, ResultJson};
+pub use json::{result_json, K3HeldJson, PerViewJson, ProjectionSigmaJson, RejectedJson, ResultJson};
 pub use report::{render_report, write_report, Notes, NOTE_LINES, REPORT_SIZE};
 pub use stale::{remove_stale, written_by_evcal, Stale, YAML_MARK};
 pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
 
-use crate::calib::{Calibration, View};
+use crate::calib::{Calibration, ProjectionSigma, View, PROJECTION_SIGMA_STEP_PX};
 use crate::views::{ViewOrigin, WindowSample};
 use std::path::{Path, PathBuf};
 
@@ -239,6 +240,8 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     }
     json.k3_held = export.k3_held.map(|(free, std)| json::K3HeldJson { free, std });
     json.warnings.extend(warnings.iter().cloned());
+    json.projection_sigma_px =
+        ProjectionSigma::of(cal, export.views, PROJECTION_SIGMA_STEP_PX).as_ref().map(ProjectionSigmaJson::from);
     let json = serde_json::to_string_pretty(&json)? + "\n";
 
     let path = |name: &str| dir.join(name);
@@ -359,6 +362,19 @@ mod test {
         // The JSON carries the export's warnings after the solver's.
         let json: ResultJson = serde_json::from_slice(&std::fs::read(&want[0]).unwrap()).unwrap();
         assert_eq!(json.warnings[cal.warnings.len()..], written.warnings[..]);
+        // And the projection σ over the sensor, its grid as the calibration gives it.
+        let sigma = ProjectionSigma::of(&cal, &views, PROJECTION_SIGMA_STEP_PX).expect("a projection σ");
+        let got = json.projection_sigma_px.as_ref().expect("projection_sigma_px");
+        assert_eq!((got.step_px, got.columns, got.rows), (8, 44, 33));
+        // serde_json reads a float back to within a unit of its last digit.
+        let want = ProjectionSigmaJson::from(&sigma);
+        assert_eq!(got.covered, want.covered);
+        for (g, w) in got.values.iter().flatten().zip(want.values.iter().flatten()) {
+            assert!(g.zip(*w).is_some_and(|(g, w)| w > 0.0 && (g / w - 1.0).abs() < 1e-14), "{g:?} {w:?}");
+        }
+        let (covered, sensor) = (got.covered_p95_px.expect("covered"), got.sensor_worst_px.expect("sensor"));
+        assert!((covered / want.covered_p95_px.expect("covered") - 1.0).abs() < 1e-14);
+        assert!(covered < sensor && got.covered.iter().flatten().any(|&c| c), "{covered} {sensor}");
         assert_eq!(json.windows, timeline.len() as u64);
         assert_eq!(json.detections, views.len() as u64);
     }

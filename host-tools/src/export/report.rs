@@ -2,7 +2,8 @@
 //!
 //! - reprojection error per view (RMS, px), with the median;
 //! - every point's residual (dx, dy), with the overall RMS as a circle;
-//! - where on the sensor the points were detected, with an 8×6 cell occupancy;
+//! - where on the sensor the points were detected, with an 8×6 cell occupancy, and beside
+//!   it the projection σ over the sensor with the boards' outlines ([`super::heatmap`]);
 //! - circle centres per detection window over time, with the windows whose grid was found.
 
 use super::{ExportError, Result};
@@ -23,7 +24,7 @@ pub const REPORT_SIZE: (u32, u32) = (1600, 1200);
 const FONT: &[u8] = include_bytes!("../../assets/DejaVuSans-subset.ttf");
 /// The family plotters asks for when a style names none (axis labels), so that one
 /// registration serves every text.
-const FAMILY: &str = "sans-serif";
+pub(super) const FAMILY: &str = "sans-serif";
 /// Sensor cells counted for coverage: columns × rows.
 const CELLS: (usize, usize) = (COVERAGE_CELLS[0], COVERAGE_CELLS[1]);
 
@@ -32,20 +33,20 @@ const ORANGE: RGBColor = RGBColor(255, 127, 14);
 const GREEN: RGBColor = RGBColor(44, 160, 44);
 const RED: RGBColor = RGBColor(214, 39, 40);
 const GREY: RGBColor = RGBColor(150, 150, 150);
-const DARK: RGBColor = RGBColor(40, 40, 40);
+pub(super) const DARK: RGBColor = RGBColor(40, 40, 40);
 /// A good verdict's colour.
 const GREEN_DARK: RGBColor = RGBColor(20, 120, 40);
 /// A usable verdict's colour.
 const AMBER: RGBColor = RGBColor(190, 110, 0);
 
 /// Tick labels and axis names.
-const LABELS: (&str, u32) = (FAMILY, 15);
-const DESCS: (&str, u32) = (FAMILY, 16);
+pub(super) const LABELS: (&str, u32) = (FAMILY, 15);
+pub(super) const DESCS: (&str, u32) = (FAMILY, 16);
 
-type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
+pub(super) type Area<'a> = DrawingArea<BitMapBackend<'a>, Shift>;
 
 /// Tick label of a count or an index: whole numbers only (ticks between them stay bare).
-fn whole(v: &f64) -> String {
+pub(super) fn whole(v: &f64) -> String {
     if (v - v.round()).abs() < 1e-9 {
         format!("{v:.0}")
     } else {
@@ -144,7 +145,7 @@ fn render(
     Ok(out)
 }
 
-type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
+pub(super) type DrawResult = std::result::Result<(), Box<dyn std::error::Error>>;
 
 fn draw(
     root: &Area<'_>,
@@ -207,7 +208,10 @@ fn draw(
     let panels = body.split_evenly((2, 2));
     per_view_panel(&panels[0], cal, views.len())?;
     scatter_panel(&panels[1], cal, res)?;
-    coverage_panel(&panels[2], cal, views)?;
+    // The sensor twice, side by side: where the points were, and the σ they leave.
+    let (coverage, sigma) = panels[2].split_horizontally(panels[2].dim_in_pixel().0 / 2);
+    coverage_panel(&coverage, cal, views)?;
+    super::heatmap::sigma_panel(&sigma, cal, views)?;
     timeline_panel(&panels[3], cal, origins, timeline)?;
     Ok(())
 }
@@ -272,7 +276,7 @@ fn per_view_panel(area: &Area<'_>, cal: &Calibration, n_views: usize) -> DrawRes
 /// The plotting rectangle's margins that give x and y the same scale: extra margin on the
 /// longer side of `area` (after `label_w` on the left and `label_h` below) so that its
 /// aspect is `want` (width / height).
-fn equal_aspect_margins(area: &Area<'_>, label_w: u32, label_h: u32, want: f64) -> (u32, u32) {
+pub(super) fn equal_aspect_margins(area: &Area<'_>, label_w: u32, label_h: u32, want: f64) -> (u32, u32) {
     let (w, h) = area.dim_in_pixel();
     let (pw, ph) = (f64::from(w.saturating_sub(label_w + 24)), f64::from(h.saturating_sub(label_h + 50)));
     if pw <= 0.0 || ph <= 0.0 || !want.is_finite() || want <= 0.0 {
@@ -366,14 +370,15 @@ fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) -> DrawRes
     }
     let covered = counts.iter().flatten().filter(|&&n| n > 0).count();
     let most = counts.iter().flatten().copied().max().unwrap_or(0).max(1);
+    // Half a panel wide, beside the σ map.
     let caption = format!(
-        "Sensor coverage: {covered} of {} cells ({}×{}) hold points ({:.0} %)",
+        "Coverage: {covered} of {} cells ({}×{}), {:.0} %",
         CELLS.0 * CELLS.1,
         CELLS.0,
         CELLS.1,
         100.0 * covered as f64 / (CELLS.0 * CELLS.1) as f64
     );
-    let titled = area.titled(&caption, (FAMILY, 20))?;
+    let titled = area.titled(&caption, (FAMILY, 17))?;
     let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
     let mut chart = ChartBuilder::on(&titled)
         .margin(12)

@@ -25,7 +25,7 @@ mod views;
 
 pub use verdict::{
     Verdict, EXIT_GOOD, EXIT_NOT_A_CALIBRATION, EXIT_USABLE, GOOD_CENTRE_PX, GOOD_CORNER_PX, GOOD_COVERAGE,
-    GOOD_FOCAL_RELATIVE, GOOD_RMS_PX, GOOD_VIEWS, MAX_ACTIONS,
+    GOOD_FOCAL_RELATIVE, GOOD_PROJECTION_PX, GOOD_RMS_PX, GOOD_VIEWS, MAX_ACTIONS,
 };
 pub use verdicts::{
     calibrate_with_disc_fallback, disc_fallback_rejects, loose_params, no_calibration, Chosen, DiscFallback,
@@ -139,6 +139,9 @@ pub struct Outcome {
     pub k3_held: Option<K3Held>,
     /// Where on the sensor the chosen views' points fell.
     pub coverage: Coverage,
+    /// One standard deviation of where a distant point is seen, over the sensor
+    /// ([`calib::ProjectionSigma`]); `None` when it cannot be computed.
+    pub projection_sigma: Option<calib::ProjectionSigma>,
     /// What the user should know about the views, and what motion would help.
     pub advice: Vec<String>,
     /// The focal length is looser than [`FOCAL_WARN_RELATIVE`], and what would fix it;
@@ -299,9 +302,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
             let (a, b) = (alt.intrinsics.to_array(), calibration.intrinsics.to_array());
             let change: [f64; 9] = std::array::from_fn(|i| a[i] - b[i]);
             if change.iter().all(|c| c.is_finite()) {
-                for (sd, c) in calibration.std_dev.iter_mut().zip(change) {
-                    *sd = sd.hypot(c);
-                }
+                calibration.widen(change);
                 s.by_thickness = Some(edge_shift::ByThickness { px, change });
             }
         }
@@ -322,6 +323,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         };
     let kept: Vec<&View> = calibration.views.iter().filter_map(|v| used.get(v.view)).collect();
     let coverage = Coverage::of(&kept, setup.image_size);
+    let projection_sigma = calib::ProjectionSigma::of(&calibration, &used, calib::PROJECTION_SIGMA_STEP_PX);
     let advice = advice(&calibration, &coverage);
     let lag = edge_shift.and_then(|s| s.by_thickness).map(|b| b.change);
     let weak_focal = WeakFocal::of(&calibration, &coverage, lag.as_ref());
@@ -336,6 +338,7 @@ pub fn calibrate_views(views: &Views, setup: &Setup) -> Result<Outcome, Pipeline
         without_k3,
         k3_held,
         coverage,
+        projection_sigma,
         advice,
         weak_focal,
         failure,

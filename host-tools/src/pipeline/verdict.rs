@@ -25,6 +25,11 @@ pub const GOOD_COVERAGE: f64 = crate::views::select::WELL_COVERED;
 /// more than this, px ([`crate::calib::CORNER_SHIFT_PX`]): beyond it the model is guessed
 /// where the points never were.
 pub const GOOD_CORNER_PX: f64 = crate::calib::CORNER_SHIFT_PX;
+/// Good needs the projection σ of a distant point ([`crate::calib::ProjectionSigma`]) within
+/// this over 95 % of the sensor, px: the model a program undistorts with is then known to a
+/// pixel everywhere, extrapolated corners included (the focal length's 0.1 % and the
+/// principal point's pixel above give about as much at the sensor's edge).
+pub const GOOD_PROJECTION_PX: f64 = 1.0;
 /// Good needs at least this many views solved on.
 pub const GOOD_VIEWS: usize = crate::views::select::FEW_VIEWS;
 /// Good needs the RMS reprojection error within this, px: well-focused event centres fit
@@ -106,6 +111,17 @@ impl Verdict {
             actions.push(format!(
                 "bring the target into the sensor's corners (1σ of {name} moves a corner {worst:.1} px)"
             ));
+        }
+        if let Some(p) = &o.projection_sigma {
+            if exceeds(p.sensor.p95_px, GOOD_PROJECTION_PX) {
+                actions.push(format!(
+                    "sweep the target out to the sensor's edges: a distant point's image is uncertain by {} (95 % of the sensor)",
+                    match p.sensor.p95_px.is_finite() {
+                        true => format!("{:.1} px", p.sensor.p95_px),
+                        false => "more than the model can say".into(),
+                    }
+                ));
+            }
         }
         let centre = c.std_dev[2].max(c.std_dev[3]);
         if exceeds(centre, GOOD_CENTRE_PX) {

@@ -11,6 +11,7 @@ mod formats;
 mod golden_detect;
 mod hostile_input;
 mod info_cli;
+mod projection_sigma;
 mod read_options;
 mod target;
 mod verdict;

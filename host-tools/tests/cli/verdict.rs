@@ -5,7 +5,7 @@
 use evcal_host::calib::{synthetic_views, Intrinsics};
 use evcal_host::input::detections::{CenterRecord, WindowRecord};
 use evcal_host::pipeline::{
-    GOOD_CENTRE_PX, GOOD_CORNER_PX, GOOD_COVERAGE, GOOD_FOCAL_RELATIVE, GOOD_RMS_PX, GOOD_VIEWS,
+    GOOD_CENTRE_PX, GOOD_CORNER_PX, GOOD_COVERAGE, GOOD_FOCAL_RELATIVE, GOOD_PROJECTION_PX, GOOD_RMS_PX, GOOD_VIEWS,
 };
 use std::path::Path;
 use std::process::Command;
@@ -101,6 +101,7 @@ fn help_states_the_verdicts_thresholds() {
         ("focal length", format!("fx, fy within {} %", 100.0 * GOOD_FOCAL_RELATIVE)),
         ("principal point", format!("cx, cy within {GOOD_CENTRE_PX} px")),
         ("distortion", format!("corner by over {GOOD_CORNER_PX} px")),
+        ("projection", format!("projection σ within {GOOD_PROJECTION_PX} px over 95 %")),
         ("coverage", format!("at least {:.0} % of the sensor", 100.0 * GOOD_COVERAGE)),
         ("views", format!("{GOOD_VIEWS} views")),
         ("residuals", format!("within {GOOD_RMS_PX} px")),

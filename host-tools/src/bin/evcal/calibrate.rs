@@ -528,6 +528,9 @@ pub fn report(views: &Views, o: &Outcome, setup: &Setup, truth: Option<&Intrinsi
     if verbose {
         outln!("{}", indent(&o.coverage.picture()))?;
     }
+    if let Some(s) = &o.projection_sigma {
+        outln!("{}", s.summary())?;
+    }
     if let Some(h) = &o.k3_held {
         outln!("note: {h}")?;
     }

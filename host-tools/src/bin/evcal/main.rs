@@ -84,6 +84,8 @@ enum Command {
     /// The last line is the verdict, and the exit status follows it:
     ///   verdict: good                 (0) fx, fy within 0.1 % (1σ), cx, cy within 1 px,
     ///                                 no distortion σ moving a sensor corner by over 0.5 px,
+    ///                                 a distant point's projection σ within 1 px over 95 %
+    ///                                 of the sensor,
     ///                                 points on at least 60 % of the sensor, 10 views or
     ///                                 more, RMS reprojection error within 0.5 px
     ///   verdict: usable, but ...      (4) a calibration that misses one of those; up to three

@@ -188,6 +188,9 @@ fn the_verdict_follows_its_thresholds_and_names_at_most_three_actions() {
     o.calibration.std_dev[8] = 1.0;
     assert!(Verdict::of(&o).actions()[0].contains("1σ of k3 moves a corner"), "{}", Verdict::of(&o));
     o = good.clone();
+    o.projection_sigma.as_mut().expect("a projection σ").sensor.p95_px = 2.0 * GOOD_PROJECTION_PX;
+    assert!(Verdict::of(&o).actions()[0].contains("uncertain by 2.0 px"), "{}", Verdict::of(&o));
+    o = good.clone();
     o.coverage.covered = 0.3;
     assert!(Verdict::of(&o).actions()[0].contains("30 % of it"), "{}", Verdict::of(&o));
 
