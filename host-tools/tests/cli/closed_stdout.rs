@@ -9,11 +9,7 @@ use evcal_core::{
     event::{Event, SensorSize},
     evt::Encoding,
 };
-use evcal_host::{
-    input::detections::{CenterRecord, WindowRecord},
-    input::recording::{prophesee::write::write_raw, write_text},
-    sim::{Light, SimConfig, Simulator, Trajectory},
-};
+use evcal_host::input::recording::{prophesee::write::write_raw, write_text};
 use std::{
     path::Path,
     process::{Command, Stdio},
@@ -89,31 +85,9 @@ fn a_damaged_recording_is_still_an_error() {
 fn calibrate_writes_its_files_and_ends_quietly() {
     // Detections as a perfect detector would give them: the true circle centres of a
     // simulated sweep (no event simulation needed).
-    let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, 1).unwrap();
-    let sim = Simulator::new(cfg);
-    let lines: Vec<String> = (0..90u32)
-        .map(|seq| {
-            let t_ref_us = 20_000 + u64::from(seq) * 33_333;
-            let truth = sim.truth_at(t_ref_us);
-            let centers = truth
-                .circles
-                .iter()
-                .filter(|c| c.in_view)
-                .map(|c| CenterRecord {
-                    u: c.ellipse_centre[0] as f32,
-                    v: c.ellipse_centre[1] as f32,
-                    r: c.radius_px as f32,
-                    spread: 0.1,
-                    n: 60,
-                    converged: true,
-                })
-                .collect();
-            WindowRecord { seq, t_ref_us, events: 4000, noise: 100, centers, sensor: None }.to_json_line()
-        })
-        .collect();
     let dir = tempfile::tempdir().unwrap();
     let det = dir.path().join("detections.jsonl");
-    std::fs::write(&det, lines.join("\n") + "\n").unwrap();
+    std::fs::write(&det, crate::true_centre_detections()).unwrap();
     let out_dir = dir.path().join("out");
     assert_quiet_success(&[
         "calibrate",

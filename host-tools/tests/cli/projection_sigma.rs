@@ -1,40 +1,14 @@
 //! `evcal calibrate` states the calibration's uncertainty in pixels (issue 44, item 1): one
 //! console line, and the grid with its figures in `calibration.json`.
 
-use evcal_host::{
-    input::detections::{CenterRecord, WindowRecord},
-    sim::{Light, SimConfig, Simulator, Trajectory},
-};
 use std::process::Command;
 
 #[test]
 fn calibrate_prints_one_line_of_projection_sigma_and_writes_its_grid() {
     // A perfect detector's centres on 3 s of a simulated cone.
-    let cfg = SimConfig::preset("davis346", "4x11", Trajectory::Cone, Light::Good, 1).unwrap();
-    let sim = Simulator::new(cfg);
-    let lines: Vec<String> = (0..90u32)
-        .map(|seq| {
-            let t_ref_us = 20_000 + u64::from(seq) * 33_333;
-            let centers = sim
-                .truth_at(t_ref_us)
-                .circles
-                .iter()
-                .filter(|c| c.in_view)
-                .map(|c| CenterRecord {
-                    u: c.ellipse_centre[0] as f32,
-                    v: c.ellipse_centre[1] as f32,
-                    r: c.radius_px as f32,
-                    spread: 0.1,
-                    n: 60,
-                    converged: true,
-                })
-                .collect();
-            WindowRecord { seq, t_ref_us, events: 4000, noise: 100, centers, sensor: None }.to_json_line()
-        })
-        .collect();
     let dir = tempfile::tempdir().unwrap();
     let det = dir.path().join("detections.jsonl");
-    std::fs::write(&det, lines.join("\n") + "\n").unwrap();
+    std::fs::write(&det, crate::true_centre_detections()).unwrap();
     let out_dir = dir.path().join("out");
     let out = Command::new(env!("CARGO_BIN_EXE_evcal"))
         .args(["calibrate", det.to_str().unwrap(), "--sensor", "davis346", "--pattern", "4x11", "--spacing", "0.024"])
