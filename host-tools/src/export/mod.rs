@@ -116,6 +116,9 @@ pub struct Export<'a> {
     /// Every circle centre detected in each view's window, indexed like `views`, for the
     /// report's windows ([`Notes::centres`]). Empty: the grid drawn alone.
     pub centres: &'a [Vec<[f64; 2]>],
+    /// The events of each view's window as pixels, indexed like `views`, for the report's
+    /// windows ([`Notes::events`]). Empty, or an empty list: not kept.
+    pub events: &'a [Vec<[u16; 2]>],
     /// Windows looked at and grids found.
     pub counts: RunCounts,
     /// `camera_name` of the ROS file.
@@ -162,6 +165,7 @@ impl<'a> Export<'a> {
             origins,
             timeline,
             centres: &[],
+            events: &[],
             counts: RunCounts {
                 windows: timeline.len() as u64,
                 detections: timeline.iter().filter(|w| w.grid_found).count() as u64,
@@ -262,6 +266,7 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
         verdict: verdict.as_deref(),
         warnings: &all_warnings,
         centres: export.centres,
+        events: export.events,
     };
     let png = render_report(&report, cal, export.views, export.origins, export.timeline, &notes)?;
     let mut contents: Vec<(PathBuf, &[u8])> =

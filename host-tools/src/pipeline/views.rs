@@ -80,6 +80,10 @@ pub struct Views {
     /// Per view: every circle centre detected in its window (the grid's and the others),
     /// px, for the report's pictures of the windows. Empty: not known.
     pub centres: Vec<Vec<[f64; 2]>>,
+    /// A few windows' events, sampled while the recording was detected
+    /// ([`crate::input::event_frames`]), for the report's pictures. Empty: not kept (the run
+    /// read detections).
+    pub event_frames: Vec<crate::input::event_frames::EventFrame>,
     /// Every window, for the report's timeline.
     pub timeline: Vec<WindowSample>,
     /// The grid finder's tally.

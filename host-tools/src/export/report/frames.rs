@@ -4,14 +4,18 @@
 //! next circle) shows at a glance, as ROS's calibrator overlay and Kalibr's
 //! `--show-extraction` show it.
 
-use super::{equal_aspect_margins, Area, DrawResult, BLUE, DARK, FAMILY, GREY, LABELS, ORANGE};
+use super::{equal_aspect_margins, Area, DrawResult, Notes, BLUE, DARK, FAMILY, LABELS, ORANGE, RED};
 use crate::calib::{Calibration, View};
 use crate::views::ViewOrigin;
 use plotters::prelude::*;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashMap};
 
 /// Windows drawn along the bottom of the report.
 pub const FRAMES: usize = 4;
+
+/// An event pixel's grey by how many of the window's events fell on it: one, two, three,
+/// four or more. Light, so that the centres and the grid stand out on it.
+const EVENT_GREYS: [u8; 4] = [205, 180, 155, 130];
 
 /// The windows' captions: smaller than the panels', four to a row.
 const FRAME_CAPTION: (&str, u32) = (FAMILY, 16);
@@ -49,32 +53,44 @@ pub(super) fn board_numbers(views: &[View]) -> BTreeMap<(i64, i64), usize> {
 }
 
 /// Up to [`FRAMES`] of the used views (indices into `cal.views`), spread evenly over the
-/// run in time (by input index where a view has no time): the middle of each of
-/// [`FRAMES`] equal parts of the used views in time order.
-pub(super) fn spread_views(cal: &Calibration, origins: &[ViewOrigin]) -> Vec<usize> {
+/// run in time (by input index where a view has no time), in time order: chosen first among
+/// the views `kept` says have their events, the rest among the others.
+pub(super) fn spread_views(cal: &Calibration, origins: &[ViewOrigin], kept: impl Fn(usize) -> bool) -> Vec<usize> {
     let at = |i: usize| origins.get(cal.views[i].view).map(|o| o.t_s).filter(|t| t.is_finite());
-    let mut order: Vec<usize> = (0..cal.views.len()).collect();
-    order.sort_by(|&a, &b| match (at(a), at(b)) {
+    let by_time = |a: &usize, b: &usize| match (at(*a), at(*b)) {
         (Some(x), Some(y)) => x.total_cmp(&y),
-        _ => cal.views[a].view.cmp(&cal.views[b].view),
-    });
-    let n = order.len().min(FRAMES);
+        _ => cal.views[*a].view.cmp(&cal.views[*b].view),
+    };
+    let (mut with, mut without): (Vec<usize>, Vec<usize>) =
+        (0..cal.views.len()).partition(|&i| kept(cal.views[i].view));
+    with.sort_by(by_time);
+    without.sort_by(by_time);
+    let mut picked = spread(&with, FRAMES);
+    picked.extend(spread(&without, FRAMES - picked.len()));
+    picked.sort_by(by_time);
+    picked
+}
+
+/// `n` of `order` (fewer if it is shorter): the middle of each of `n` equal parts.
+fn spread(order: &[usize], n: usize) -> Vec<usize> {
+    let n = order.len().min(n);
     (0..n).map(|k| order[(2 * k + 1) * order.len() / (2 * n)]).collect()
 }
 
-/// The bottom strip: [`FRAMES`] windows side by side ([`spread_views`]). `centres`: every
-/// centre detected in each view's window, indexed like `views` (may be empty).
+/// The bottom strip: [`FRAMES`] windows side by side ([`spread_views`]), with the centres
+/// and events of `notes`.
 pub(super) fn frames_row(
     area: &Area<'_>,
     cal: &Calibration,
     views: &[View],
     origins: &[ViewOrigin],
-    centres: &[Vec<[f64; 2]>],
+    notes: &Notes<'_>,
 ) -> DrawResult {
     let numbers = board_numbers(views);
     let cells = area.split_evenly((1, FRAMES));
-    for (slot, i) in cells.iter().zip(spread_views(cal, origins)) {
-        frame_panel(slot, cal, views, origins, centres, &numbers, i)?;
+    let kept = |v: usize| notes.events.get(v).is_some_and(|e| !e.is_empty());
+    for (slot, i) in cells.iter().zip(spread_views(cal, origins, kept)) {
+        frame_panel(slot, cal, views, origins, notes, &numbers, i)?;
     }
     Ok(())
 }
@@ -85,16 +101,20 @@ fn frame_panel(
     cal: &Calibration,
     views: &[View],
     origins: &[ViewOrigin],
-    centres: &[Vec<[f64; 2]>],
+    notes: &Notes<'_>,
     numbers: &BTreeMap<(i64, i64), usize>,
     i: usize,
 ) -> DrawResult {
     let v = cal.views[i].view;
     let Some(view) = views.get(v) else { return Ok(()) };
-    let found = centres.get(v);
+    let found = notes.centres.get(v);
+    let events = notes.events.get(v).map_or(&[][..], Vec::as_slice);
     let [w, h] = cal.image_size.map(|x| f64::from(x.max(1)));
     let when = origins.get(v).map_or(String::new(), |o| format!(" at {:.2} s", o.t_s));
     let caption = match found {
+        Some(c) if !events.is_empty() => {
+            format!("View {v}{when}: {} in grid of {} centres, {} events", view.image.len(), c.len(), events.len())
+        }
         Some(c) => format!("View {v}{when}: {} in grid of {} centres", view.image.len(), c.len()),
         None => format!("View {v}{when}: {} points in grid", view.image.len()),
     };
@@ -116,11 +136,20 @@ fn frame_panel(
         .x_label_formatter(&super::whole)
         .y_label_formatter(&super::whole)
         .draw()?;
+    let mut counts: HashMap<[u16; 2], usize> = HashMap::new();
+    for p in events {
+        *counts.entry(*p).or_default() += 1;
+    }
+    chart.draw_series(counts.iter().map(|(p, &n)| {
+        let g = EVENT_GREYS[n.clamp(1, EVENT_GREYS.len()) - 1];
+        let (x, y) = (f64::from(p[0]), f64::from(p[1]));
+        Rectangle::new([(x - 0.5, y - 0.5), (x + 0.5, y + 0.5)], RGBColor(g, g, g).filled())
+    }))?;
     if let Some(c) = found {
         chart.draw_series(
             c.iter()
                 .filter(|p| p[0].is_finite() && p[1].is_finite())
-                .map(|p| Circle::new((p[0], p[1]), 2, GREY.filled())),
+                .map(|p| Circle::new((p[0], p[1]), 3, RED.stroke_width(1))),
         )?;
     }
     let mut grid: Vec<(usize, [f64; 2])> =
@@ -170,7 +199,7 @@ mod test {
         let (_, cal, origins, _) = setup(&TRUTH, false);
         let n = cal.views.len();
         assert!(n >= 2 * FRAMES, "{n} views");
-        let picked = spread_views(&cal, &origins);
+        let picked = spread_views(&cal, &origins, |_| false);
         assert_eq!(picked.len(), FRAMES);
         let t: Vec<f64> = picked.iter().map(|&i| origins[cal.views[i].view].t_s).collect();
         let all: Vec<f64> = cal.views.iter().map(|v| origins[v.view].t_s).collect();
@@ -184,6 +213,17 @@ mod test {
         // Fewer views than frames: each once.
         let mut few = cal.clone();
         few.views.truncate(2);
-        assert_eq!(spread_views(&few, &origins), vec![0, 1]);
+        assert_eq!(spread_views(&few, &origins, |_| true), vec![0, 1]);
+        // Views with their events kept come first, still in time order; the rest fill up.
+        let kept = |v: usize| v % 3 == 0;
+        let with = cal.views.iter().filter(|r| kept(r.view)).count();
+        assert!(with >= FRAMES, "{with}");
+        let picked = spread_views(&cal, &origins, kept);
+        assert_eq!(picked.len(), FRAMES);
+        assert!(picked.iter().all(|&i| kept(cal.views[i].view)), "{picked:?}");
+        let some = |v: usize| v == 5 || v == 9;
+        let picked: Vec<usize> = spread_views(&cal, &origins, some).iter().map(|&i| cal.views[i].view).collect();
+        assert_eq!(picked.len(), FRAMES);
+        assert!(picked.contains(&5) && picked.contains(&9) && picked.windows(2).all(|p| p[0] < p[1]), "{picked:?}");
     }
 }

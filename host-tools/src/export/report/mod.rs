@@ -106,6 +106,10 @@ pub struct Notes<'a> {
     /// Every circle centre detected in each view's window, indexed like the views (empty:
     /// not known): drawn under the numbered grid of the windows shown.
     pub centres: &'a [Vec<[f64; 2]>],
+    /// The events of each view's window as pixels, indexed like the views (empty, or an empty
+    /// list: not kept): drawn as a grey image under the centres. The windows shown are chosen
+    /// among the views that have them.
+    pub events: &'a [Vec<[u16; 2]>],
 }
 
 /// The most warnings drawn on the report: the console and the JSON result hold them all.
@@ -232,7 +236,7 @@ fn draw(
     panels::coverage_panel(&rows[3], cal, views)?;
     panels::timeline_panel(&rows[4], cal, origins, timeline)?;
     heat_map_slot(&rows[5])?;
-    frames::frames_row(&strip, cal, views, origins, notes.centres)?;
+    frames::frames_row(&strip, cal, views, origins, notes)?;
     Ok(())
 }
 
@@ -311,7 +315,14 @@ mod test {
         // Each window's centres: its grid's and two strays.
         let centres: Vec<Vec<[f64; 2]>> =
             views.iter().map(|v| v.image.iter().copied().chain([[20.0, 20.0], [300.0, 40.0]]).collect()).collect();
-        let notes = Notes { centres: &centres, ..Notes::default() };
+        // Every view's events: a few pixels round each of its points, once each.
+        let events: Vec<Vec<[u16; 2]>> = views
+            .iter()
+            .map(|v| {
+                v.image.iter().flat_map(|p| [[p[0] as u16 + 8, p[1] as u16], [p[0] as u16, p[1] as u16 + 8]]).collect()
+            })
+            .collect();
+        let notes = Notes { centres: &centres, events: &events, ..Notes::default() };
         write_report(&path, &cal, &views, &origins, &timeline, &notes).unwrap();
         let bytes = std::fs::read(&path).unwrap();
         assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
@@ -330,13 +341,17 @@ mod test {
             let n = colours(&img, x.clone(), y.clone());
             assert!(n >= 8, "panel at {x:?}, {y:?}: {n} colours");
         }
-        // Each window of the strip holds its centres (grey) and its numbered grid (blue).
+        // Each window of the strip holds its events (light grey), its centres (red rings) and
+        // its numbered grid (blue).
         let strip = h - strip_h + 30..h;
         for f in 0..FRAMES as u32 {
             let x = f * w / FRAMES as u32..(f + 1) * w / FRAMES as u32;
-            let (grey, blue) =
-                (count(&img, x.clone(), strip.clone(), GREY), count(&img, x.clone(), strip.clone(), BLUE));
-            assert!(grey >= 20 && blue >= 200, "window {f}: {grey} grey, {blue} blue pixels");
+            let n = |c: RGBColor| count(&img, x.clone(), strip.clone(), c);
+            let (events, red, blue) = (n(RGBColor(205, 205, 205)), n(RED), n(BLUE));
+            assert!(
+                events >= 20 && red >= 4 && blue >= 200,
+                "window {f}: {events} event, {red} red, {blue} blue pixels"
+            );
         }
         // The title strip holds anti-aliased text, not a blank band.
         assert!(colours(&img, 0..w, 0..60) >= 4);
