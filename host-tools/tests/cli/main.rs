@@ -12,5 +12,6 @@ mod golden_detect;
 mod hostile_input;
 mod info_cli;
 mod read_options;
+mod report_frames;
 mod target;
 mod verdict;
