@@ -62,7 +62,7 @@ pub struct Calibration {
     /// of the figure `std_dev` came from (the grouped one when the views were grouped, else
     /// each point's own). Where `std_dev` is the larger of two figures the correlations are
     /// the grouped figure's scaled to it: the covariance stays one the σ printed agree with,
-    /// which [`ProjectionSigma`](super::ProjectionSigma) carries into pixels. An unbounded σ
+    /// which [`ProjectionSigma`] carries into pixels. An unbounded σ
     /// is an infinite diagonal entry with no correlation.
     pub covariance: [[f64; 9]; 9],
     /// Every view used, with its error and pose.
@@ -116,7 +116,7 @@ impl Calibration {
     /// Widens the parameters' uncertainty by a systematic `change` that the views cannot
     /// tell from the answer (another model's solve minus this one's): each σ becomes
     /// `hypot(σ, change)` and the covariance gains `change·changeᵀ`, so that the pixels'
-    /// uncertainty ([`ProjectionSigma`](super::ProjectionSigma)) counts it as the σ do, along the
+    /// uncertainty ([`ProjectionSigma`]) counts it as the σ do, along the
     /// direction it moves the parameters together. A non-finite `change` changes nothing.
     pub fn widen(&mut self, change: [f64; 9]) {
         if !change.iter().all(|c| c.is_finite()) {

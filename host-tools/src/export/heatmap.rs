@@ -114,7 +114,7 @@ mod test {
     use super::*;
 
     #[test]
-    fn the_report_draws_the_sigma_map_beside_the_coverage() {
+    fn the_report_draws_the_sigma_map_in_its_panel() {
         let (views, cal, origins, timeline) = setup(&TRUTH, false);
         let png = super::super::render_report(
             std::path::Path::new("r.png"),
@@ -129,10 +129,10 @@ mod test {
         let mut rgb = vec![0; reader.output_buffer_size()];
         reader.next_frame(&mut rgb).expect("a frame");
         let (w, h) = super::super::REPORT_SIZE;
-        // The bottom-left panel's right half.
+        // Its panel: the second row's third, above the strip of windows.
         let count = |c: RGBColor| {
-            (h / 2..h)
-                .flat_map(|y| (w / 4..w / 2).map(move |x| 3 * (y * w + x) as usize))
+            (2 * h / 5..4 * h / 5)
+                .flat_map(|y| (2 * w / 3..w).map(move |x| 3 * (y * w + x) as usize))
                 .filter(|&i| rgb[i..i + 3] == [c.0, c.1, c.2])
                 .count()
         };

@@ -33,7 +33,7 @@ mod stale;
 mod yaml;
 
 pub use json::{result_json, K3HeldJson, PerViewJson, ProjectionSigmaJson, RejectedJson, ResultJson};
-pub use report::{render_report, write_report, Notes, NOTE_LINES, REPORT_SIZE};
+pub use report::{render_report, write_report, Notes, FRAMES, NOTE_LINES, REPORT_SIZE};
 pub use stale::{remove_stale, written_by_evcal, Stale, YAML_MARK};
 pub use yaml::{camera_info_yaml, kalibr_camchain_yaml, opencv_yaml};
 
@@ -114,6 +114,12 @@ pub struct Export<'a> {
     pub origins: &'a [ViewOrigin],
     /// Every detection window, for the report's timeline.
     pub timeline: &'a [WindowSample],
+    /// Every circle centre detected in each view's window, indexed like `views`, for the
+    /// report's windows ([`Notes::centres`]). Empty: the grid drawn alone.
+    pub centres: &'a [Vec<[f64; 2]>],
+    /// The events of each view's window as pixels, indexed like `views`, for the report's
+    /// windows ([`Notes::events`]). Empty, or an empty list: not kept.
+    pub events: &'a [Vec<[u16; 2]>],
     /// Windows looked at and grids found.
     pub counts: RunCounts,
     /// `camera_name` of the ROS file.
@@ -162,6 +168,8 @@ impl<'a> Export<'a> {
             views,
             origins,
             timeline,
+            centres: &[],
+            events: &[],
             counts: RunCounts {
                 windows: timeline.len() as u64,
                 detections: timeline.iter().filter(|w| w.grid_found).count() as u64,
@@ -261,7 +269,13 @@ pub fn write_all(dir: &Path, export: &Export<'_>) -> Result<Written> {
     let verdict = export.verdict.map(ToString::to_string);
     let all_warnings: Vec<String> =
         cal.warnings.iter().chain(&written.warnings).chain(export.advice).cloned().collect();
-    let notes = Notes { failure: export.failure, verdict: verdict.as_deref(), warnings: &all_warnings };
+    let notes = Notes {
+        failure: export.failure,
+        verdict: verdict.as_deref(),
+        warnings: &all_warnings,
+        centres: export.centres,
+        events: export.events,
+    };
     let png = render_report(&report, cal, export.views, export.origins, export.timeline, &notes)?;
     let mut contents: Vec<(PathBuf, &[u8])> =
         names.iter().map(|n| path(n)).zip(texts.iter().map(|t| t.as_bytes())).collect();

@@ -77,6 +77,13 @@ pub struct Views {
     /// (DAVIS346 4x11 cone, mean +0.118 % against +0.088 % without them), for no smaller
     /// standard deviation. An empty list means none is partial.
     pub partial: Vec<bool>,
+    /// Per view: every circle centre detected in its window (the grid's and the others),
+    /// px, for the report's pictures of the windows. Empty: not known.
+    pub centres: Vec<Vec<[f64; 2]>>,
+    /// A few windows' events, sampled while the recording was detected
+    /// ([`crate::input::event_frames`]), for the report's pictures. Empty: not kept (the run
+    /// read detections).
+    pub event_frames: Vec<crate::input::event_frames::EventFrame>,
     /// Every window, for the report's timeline.
     pub timeline: Vec<WindowSample>,
     /// The grid finder's tally.
@@ -174,6 +181,7 @@ pub fn views_from_windows(windows: &[WindowRecord], setup: &Setup, progress: &(d
                     out.spreads.push(spreads);
                     out.events.push(events);
                     out.origins.push(ViewOrigin { window_seq: u64::from(w.seq), t_s });
+                    out.centres.push(w.centers.iter().map(|c| [f64::from(c.u), f64::from(c.v)]).collect());
                     out.partial.push(partial);
                 } else {
                     out.stats.too_few_after_edge += 1;

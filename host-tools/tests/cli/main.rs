@@ -13,6 +13,7 @@ mod hostile_input;
 mod info_cli;
 mod projection_sigma;
 mod read_options;
+mod report_frames;
 mod target;
 mod verdict;
 

@@ -11,6 +11,7 @@ use clap::Args;
 use evcal_core::event::SensorSize;
 use evcal_host::{
     input::detections::{self, WindowRecord},
+    input::event_frames::{EventFrame, FrameSampler},
     input::recording::{parse_sensor, OpenOptions, Recording, STDIN_NAME},
     pipeline::{
         calibrate_views, calibrate_with_disc_fallback, no_calibration, views_from_windows, Chosen, DiscFallback,
@@ -274,7 +275,7 @@ fn calibrate(
     sensor: Option<SensorSize>,
     stdin: Option<Stdin>,
 ) -> Result<()> {
-    let (windows, size) = if !from_events {
+    let (windows, size, frames) = if !from_events {
         let w = match stdin {
             Some(r) => detections::read_jsonl_in_order(r).with_context(|| STDIN_NAME.to_string())?,
             None => {
@@ -287,7 +288,7 @@ fn calibrate(
             bail!("{}: no detection windows (an empty file)", a.input.display());
         }
         let size = detections_sensor(&w, sensor, &a.input)?;
-        (w, size)
+        (w, size, Vec::new())
     } else {
         detect(a, a.core.filled_discs, stdin)?
     };
@@ -308,7 +309,8 @@ fn calibrate(
             }
         );
     }
-    let views = find_views(&windows, &setup, a.quiet);
+    let mut views = find_views(&windows, &setup, a.quiet);
+    views.event_frames = frames;
     if views.stats.found == 0 {
         if let Some(found) = transposed_finds(&windows, &setup) {
             bail!(
@@ -384,8 +386,8 @@ fn with_discs_if_rings_failed(
                 why.summary()
             );
         }
-        let (discs, _) = detect(a, true, None)?;
-        Ok(Some(find_views(&discs, setup, a.quiet)))
+        let (discs, _, frames) = detect(a, true, None)?;
+        Ok(Some(Views { event_frames: frames, ..find_views(&discs, setup, a.quiet) }))
     };
     let Chosen { views, result, fallback } = calibrate_with_disc_fallback(views, setup, discs)?;
     if !a.quiet {
@@ -411,7 +413,7 @@ fn detect(
     a: &CalibrateArgs,
     filled_discs: bool,
     stdin: Option<Stdin>,
-) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize)> {
+) -> Result<(Vec<WindowRecord>, evcal_core::event::SensorSize, Vec<EventFrame>)> {
     let second_pass = a.core.sensor.is_none();
     let rec = match stdin {
         None => a.read.open(&a.input, a.quiet, second_pass)?,
@@ -438,11 +440,18 @@ fn detect(
     let pb = progress_bar(rec.file_bytes, a.quiet, "detecting");
     let mut rec = rec;
     let progress = std::cell::Cell::new(0u64);
-    let events = with_position(&mut rec, 65_536, &progress);
+    // A few windows' events, for the report to draw under their grids.
+    let sampler = std::cell::RefCell::new(FrameSampler::new(cfg.window.events));
+    let events = with_position(&mut rec, 65_536, &progress).inspect(|e| {
+        if let Ok(e) = e {
+            sampler.borrow_mut().event(e);
+        }
+    });
     let mut windows = Vec::new();
     let summary = detections::run(events, cfg, |d| {
         pb.set_position(progress.get());
         pb.set_prefix(format!("windows {}", d.info.seq + 1));
+        sampler.borrow_mut().window(d.info.seq, d.info.t_first_us, d.info.t_last_us);
         windows.push(WindowRecord::from_detection(d));
     })
     .with_context(|| a.input.display().to_string())?;
@@ -460,7 +469,7 @@ fn detect(
     if windows.is_empty() {
         return Err(no_window_error(rec.name(), &summary, &cfg));
     }
-    Ok((windows, sensor))
+    Ok((windows, sensor, sampler.into_inner().into_frames()))
 }
 
 /// The grid in every window, with a progress bar.

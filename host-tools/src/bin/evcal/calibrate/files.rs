@@ -59,6 +59,10 @@ fn say_stale(s: &Stale, why: &str, quiet: bool) {
 /// files unwritten or stale from an earlier run.
 pub fn export(views: &Views, o: &Outcome, verdict: &Verdict, dir: &Path, json: Option<&Path>) -> Result<Written> {
     let mut e = Export::new(&o.calibration, &o.used, &o.used_origins, &views.timeline);
+    let centres = used_centres(views, o);
+    e.centres = &centres;
+    let events = used_events(views, o);
+    e.events = &events;
     e.kalibr_calibration = o.without_k3.as_ref();
     e.edge_shift = o.edge_shift;
     let failure = o.failure.as_ref().map(ToString::to_string);
@@ -77,6 +81,22 @@ pub fn export(views: &Views, o: &Outcome, verdict: &Verdict, dir: &Path, json: O
     // A failed run writes no file under a calibration's name, the --json copy neither.
     let json = json.filter(|_| o.failure.is_none()).map(Path::to_path_buf);
     Ok(Written { files: written, json, without_k3: o.without_k3.is_some() })
+}
+
+/// Every centre detected in the window of each view the solve was given (`o.used`), found by
+/// its window; a view whose window is not among `views`' gets none.
+fn used_centres(views: &Views, o: &Outcome) -> Vec<Vec<[f64; 2]>> {
+    let by_window: std::collections::HashMap<u64, &Vec<[f64; 2]>> =
+        views.origins.iter().map(|g| g.window_seq).zip(&views.centres).collect();
+    o.used_origins.iter().map(|g| by_window.get(&g.window_seq).map_or_else(Vec::new, |c| c.to_vec())).collect()
+}
+
+/// The events kept of the window of each view the solve was given (`o.used`), found by its
+/// window; empty where that window's were not kept.
+fn used_events(views: &Views, o: &Outcome) -> Vec<Vec<[u16; 2]>> {
+    let by_window: std::collections::HashMap<u64, &Vec<[u16; 2]>> =
+        views.event_frames.iter().map(|f| (u64::from(f.seq), &f.pixels)).collect();
+    o.used_origins.iter().map(|g| by_window.get(&g.window_seq).map_or_else(Vec::new, |p| p.to_vec())).collect()
 }
 
 /// What [`export`] wrote, to list after the report.
