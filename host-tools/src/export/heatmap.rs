@@ -2,7 +2,7 @@
 //! region the boards covered outlined: where the σ is the model's own and where it is what
 //! the polynomial makes of points elsewhere.
 
-use super::report::{equal_aspect_margins, whole, Area, DrawResult, DARK, DESCS, FAMILY, LABELS};
+use super::report::{Area, DrawResult, DARK, FAMILY};
 use crate::calib::{Calibration, ProjectionSigma, View, PROJECTION_SIGMA_STEP_PX};
 use plotters::prelude::*;
 
@@ -45,26 +45,7 @@ pub(super) fn sigma_panel(area: &Area<'_>, cal: &Calibration, views: &[View]) ->
     let caption = format!("Projection σ (px, 0–{top:.3}): {figures}");
     let titled = area.titled(&caption, (FAMILY, 17))?;
     let [w, h] = cal.image_size.map(|x| f64::from(x.max(1)));
-    let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
-    let mut chart = ChartBuilder::on(&titled)
-        .margin(12)
-        .margin_left(12 + mx)
-        .margin_right(12 + mx)
-        .margin_top(12 + my)
-        .margin_bottom(12 + my)
-        .x_label_area_size(45)
-        .y_label_area_size(65)
-        .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .label_style(LABELS)
-        .axis_desc_style(DESCS)
-        .x_label_formatter(&whole)
-        .y_label_formatter(&whole)
-        .x_desc("column (px)")
-        .y_desc("row (px)")
-        .draw()?;
+    let mut chart = super::report::sensor_chart(&titled, cal.image_size)?;
     // Each node's cell: the step around it, cut at the sensor's edge.
     let step = f64::from(s.step_px);
     let cell = |i: usize, j: usize| {

@@ -4,7 +4,7 @@
 //! not modelled; turning round the centre: a tilt or tangential term), the check mrcal's
 //! and Kalibr's residual maps give.
 
-use super::{equal_aspect_margins, Area, DrawResult, BLUE, CAPTION, CELLS, DARK, DESCS, GREY, LABELS};
+use super::{Area, DrawResult, BLUE, CAPTION, CELLS, DARK, GREY};
 use crate::calib::{Calibration, View};
 use plotters::prelude::*;
 
@@ -83,27 +83,7 @@ pub(super) fn directions_panel(
     let scale = arrow_scale(largest, cw.min(ch));
     let caption = format!("Mean residual per cell, ×{scale} (largest {largest:.3} px)");
     let titled = area.titled(&caption, CAPTION)?;
-    let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
-    let mut chart = ChartBuilder::on(&titled)
-        .margin(12)
-        .margin_left(12 + mx)
-        .margin_right(12 + mx)
-        .margin_top(12 + my)
-        .margin_bottom(12 + my)
-        .x_label_area_size(45)
-        .y_label_area_size(65)
-        // Rows grow downwards, as in the image.
-        .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .label_style(LABELS)
-        .axis_desc_style(DESCS)
-        .x_label_formatter(&super::whole)
-        .y_label_formatter(&super::whole)
-        .x_desc("column (px)")
-        .y_desc("row (px)")
-        .draw()?;
+    let mut chart = super::sensor_chart(&titled, cal.image_size)?;
     let mut lines = Vec::new();
     for c in 1..CELLS.0 {
         let x = c as f64 * cw - 0.5;

@@ -258,6 +258,46 @@ fn span(lo: f64, hi: f64) -> (f64, f64) {
     }
 }
 
+/// A chart of the sensor on `titled` (a panel under its caption): pixel coordinates, rows
+/// growing downwards as in the image, the sensor's aspect kept, the axes labelled.
+pub(super) fn sensor_chart<'a, 'b>(
+    titled: &'a Area<'b>,
+    size: [u32; 2],
+) -> std::result::Result<SensorChart<'a, 'b>, Box<dyn std::error::Error>> {
+    let [w, h] = size.map(|x| f64::from(x.max(1)));
+    let (mx, my) = equal_aspect_margins(titled, 65, 45, w / h);
+    let mut chart = ChartBuilder::on(titled)
+        .margin(12)
+        .margin_left(12 + mx)
+        .margin_right(12 + mx)
+        .margin_top(12 + my)
+        .margin_bottom(12 + my)
+        .x_label_area_size(45)
+        .y_label_area_size(65)
+        .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .label_style(LABELS)
+        .axis_desc_style(DESCS)
+        .x_label_formatter(&whole)
+        .y_label_formatter(&whole)
+        .x_desc("column (px)")
+        .y_desc("row (px)")
+        .draw()?;
+    Ok(chart)
+}
+
+/// What [`sensor_chart`] gives.
+pub(super) type SensorChart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    plotters::coord::cartesian::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
 /// The plotting rectangle's margins that give x and y the same scale: extra margin on the
 /// longer side of `area` (after `label_w` on the left and `label_h` below) so that its
 /// aspect is `want` (width / height).

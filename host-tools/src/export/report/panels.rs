@@ -138,27 +138,7 @@ pub(super) fn coverage_panel(area: &Area<'_>, cal: &Calibration, views: &[View])
         100.0 * covered as f64 / (CELLS.0 * CELLS.1) as f64
     );
     let titled = area.titled(&caption, CAPTION)?;
-    let (mx, my) = equal_aspect_margins(&titled, 65, 45, w / h);
-    let mut chart = ChartBuilder::on(&titled)
-        .margin(12)
-        .margin_left(12 + mx)
-        .margin_right(12 + mx)
-        .margin_top(12 + my)
-        .margin_bottom(12 + my)
-        .x_label_area_size(45)
-        .y_label_area_size(65)
-        // Rows grow downwards, as in the image.
-        .build_cartesian_2d(-0.5..w - 0.5, h - 0.5..-0.5)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .label_style(LABELS)
-        .axis_desc_style(DESCS)
-        .x_label_formatter(&whole)
-        .y_label_formatter(&whole)
-        .x_desc("column (px)")
-        .y_desc("row (px)")
-        .draw()?;
+    let mut chart = super::sensor_chart(&titled, cal.image_size)?;
     let (cw, ch) = (w / CELLS.0 as f64, h / CELLS.1 as f64);
     let mut cells = Vec::new();
     for (r, row) in counts.iter().enumerate() {
